@@ -1,0 +1,122 @@
+"""Every number of the paper (../shared/SPEC.md) in one place, with its unit and its source.
+
+Nothing here is ever reassigned at run time: configurable values (ρ of the planner, V_limit, traffic
+densities, ...) take these as their defaults. Sections refer to the paper; "(choice)" marks a
+project decision where the paper is silent (see SPEC.md).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final
+
+KMH: Final = 1.0 / 3.6  # [m/s per km/h]
+
+# --- §1 Static path planner (Sec. III-A) -------------------------------------------------------
+RHO_BEZIER: Final = 0.6  # [-] ρ-division of X1–X4 that places the Bezier control points X2, X3
+V_LIMIT_MPS: Final = 37.5 * KMH  # [m/s] V_limit used by the velocity planning
+PASS_SPEED_FACTOR_OUTSIDE: Final = 0.8  # [-] pass mode outside the intersection: 0.8·V_limit
+PASS_SPEED_FACTOR_INSIDE: Final = 0.5  # [-] pass mode inside: min(0.5·V_limit, 30 km/h)
+INSIDE_SPEED_CAP_MPS: Final = 30.0 * KMH  # [m/s] Chinese rule for speeds inside intersections
+STOP_DECEL_DISTANCE_M: Final = 30.0  # [m] stop mode decelerates uniformly to 0 over this distance
+PATH_SAMPLE_SPACING_M: Final = 0.5  # [m] maximal spacing of the sampled candidate polylines
+
+# --- §2 Traffic and signals (Sec. IV-A) ---------------------------------------------------------
+VEHICLES_PER_HOUR_PER_LANE: Final = 400.0  # [veh/h] per entrance lane
+CYCLISTS_PER_HOUR_PER_LANE: Final = 100.0  # [bic/h] per entrance lane
+PEDESTRIANS_PER_HOUR_PER_LANE: Final = 100.0  # [ped/h] per entrance lane
+GREEN_S: Final = 60.0  # [s] green of the ego's axis
+YELLOW_S: Final = 3.0  # [s] yellow after every green
+RED_S: Final = 40.0  # [s] red seen by the ego's approach
+CROSS_GREEN_S: Final = RED_S - YELLOW_S  # [s] (choice) cross axis G37/Y3, so the ego sees R40
+SIM_STEP_S: Final = 0.1  # [s] SUMO step and control period (Δt of f_ego)
+
+# --- §3 Perception (Sec. IV-B) ------------------------------------------------------------------
+LIDAR_RANGE_M: Final = 70.0
+LIDAR_FOV_DEG: Final = 360.0
+CAMERA_RANGE_M: Final = 80.0
+CAMERA_FOV_DEG: Final = 70.0  # ±35°
+RADAR_RANGE_M: Final = 60.0
+RADAR_FOV_DEG: Final = 90.0  # ±45°
+RADAR_CORNER_YAW_DEG: Final = 45.0  # (choice) the two corner radars face ±45° outward
+
+# Gaussian noise (mean, std) of the observation of each participant type, Table "Noise parameters".
+# Keys: p_x [m], p_y [m], v [m/s], phi [rad], L [m], W [m].
+PERCEPTION_NOISE: Final[dict[str, dict[str, tuple[float, float]]]] = {
+    "vehicle": {
+        "p_x": (-0.002, 0.157), "p_y": (-0.001, 0.151), "v": (-0.000, 0.205),
+        "phi": (0.000, 0.054), "L": (-0.011, 0.300), "W": (0.023, 0.142),
+    },
+    "cyclist": {
+        "p_x": (0.001, 0.172), "p_y": (-0.008, 0.158), "v": (0.005, 0.176),
+        "phi": (-0.014, 0.171), "L": (-0.003, 0.165), "W": (0.035, 0.109),
+    },
+    "pedestrian": {
+        "p_x": (0.001, 0.110), "p_y": (-0.001, 0.111), "v": (-0.000, 0.119),
+        "phi": (-0.003, 0.229), "L": (-0.000, 0.147), "W": (-0.002, 0.141),
+    },
+}
+
+# --- §4 State, action, utility (Sec. IV-C) -----------------------------------------------------
+N_VEHICLES_OBSERVED: Final = 8
+N_CYCLISTS_OBSERVED: Final = 4
+N_PEDESTRIANS_OBSERVED: Final = 4
+EGO_STATE_DIM: Final = 8  # [p_x, p_y, v_x, v_y, φ, ω, δ, a]
+TRACK_STATE_DIM: Final = 4  # [Δx, Δy, Δv, Δφ]
+OTHER_STATE_DIM: Final = 6  # [p_x, p_y, v, φ, L, W] per participant
+STATE_DIM: Final = EGO_STATE_DIM + TRACK_STATE_DIM + OTHER_STATE_DIM * (
+    N_VEHICLES_OBSERVED + N_CYCLISTS_OBSERVED + N_PEDESTRIANS_OBSERVED
+)  # 108
+STEER_RATE_MAX: Final = 0.4  # [rad/s] |Δδ|
+JERK_MAX: Final = 4.5  # [m/s³] |Δa|
+STEER_MAX: Final = 0.4  # [rad] |δ|
+ACCEL_MIN: Final = -3.0  # [m/s²]
+ACCEL_MAX: Final = 1.5  # [m/s²]
+
+UTILITY_WEIGHTS: Final[dict[str, float]] = {
+    "dv": 0.03, "dx": 0.8, "dy": 0.8, "dphi": 30.0,
+    "omega": 0.02, "delta": 5.0, "a": 0.05, "ddelta": 0.4, "da": 0.1,
+}
+
+# --- §5 Models (Sec. IV-D) ----------------------------------------------------------------------
+K_F: Final = -155495.0  # [N/rad] front cornering stiffness
+K_R: Final = -155495.0  # [N/rad] rear cornering stiffness
+L_F: Final = 1.19  # [m] CG to front axle
+L_R: Final = 1.46  # [m] CG to rear axle
+MASS_KG: Final = 1520.0  # [kg]
+I_Z: Final = 2642.0  # [kg·m²]
+DT_S: Final = SIM_STEP_S  # [s] discrete time of f_ego / f_other
+
+# ξ ranges of the adversary, (low, high): x [m], y [m], v [m/s], φ [rad].
+XI_RANGES: Final[dict[str, tuple[float, float]]] = {
+    "x": (-0.8, 0.8), "y": (-0.8, 0.8), "v": (-0.075, 0.225), "phi": (-0.025, 0.025),
+}
+
+# --- §6 APG training (Algorithm 1, Sec. V-A) ---------------------------------------------------
+HORIZON_T: Final = 25
+PENALTY_RHO: Final = 15.0
+ADVERSARY_UPDATE_INTERVAL: Final = 5
+HIDDEN_LAYERS: Final = 5
+HIDDEN_UNITS: Final = 256
+BATCH_SIZE: Final = 256
+POLICY_LR: Final = (1e-4, 2e-6)  # cosine annealing start → end
+VALUE_LR: Final = (3e-4, 1e-6)
+ADAM_BETAS: Final = (0.9, 0.999)
+TOTAL_ITERATIONS: Final = 200_000
+LOG_INTERVAL: Final = 1000
+TAR_RUNS: Final = 10
+TAR_STEPS: Final = 120
+
+# --- §7 Online traffic-light logic (Sec. IV-E) -------------------------------------------------
+CONGESTION_STOP_S: Final = 3.0  # [s] front vehicle stopped longer than this → stop mode
+YELLOW_BRAKE_DECEL: Final = -2.4  # [m/s²] a_M, 80 % of the maximal braking
+
+# --- §8 Generalization tests (Sec. V-C) --------------------------------------------------------
+SURROUNDING_LIMIT_INSIDE_MPS: Final = 25.0 * KMH
+SURROUNDING_LIMIT_OUTSIDE_MPS: Final = 30.0 * KMH
+OVERSPEED_SHARE: Final = 0.15  # share of the opposite straight vehicles that over-speed
+OVERSPEED_LEVELS: Final = (0.10, 0.20, 0.50)
+ROUNDING_LEVELS: Final = (0.10, 0.20, 0.50)
+EVALUATION_RUNS: Final = 200
+
+DEG: Final = math.pi / 180.0

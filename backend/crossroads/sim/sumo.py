@@ -1,0 +1,653 @@
+"""The one door to SUMO: a :class:`SumoSession` over libsumo.
+
+This is the ONLY module of Crossroads that imports ``libsumo`` (DESIGN.md). Everything else talks
+to SUMO through the session's methods, which take and return our conventions:
+
+* positions [m] in SUMO's network frame; for vehicles the **footprint centre** (SUMO reports the
+  centre of the front bumper; we shift by half the length along the heading, both ways);
+* headings [rad] counter-clockwise from +x (SUMO: degrees clockwise from north);
+* speeds [m/s], times [s].
+
+libsumo runs the simulation inside this process and holds exactly one simulation per process, so
+at most one session may be running at a time (a second ``start`` raises :class:`SumoError`). Run
+several simulations in parallel with processes, not threads.
+
+Every libsumo failure is turned into :class:`SumoError` in one place (:func:`_sumo_errors`). SUMO
+writes its load errors to the C ``stderr`` rather than into the exception, so ``start`` captures
+file descriptor 2 while loading and puts SUMO's own message into the error.
+
+Known libsumo behaviours this module works around (SUMO 1.28):
+
+* subscription results survive ``close()`` and a restart; the session therefore reads only the
+  ids it knows to be alive (tracked from the departed/arrived lists), never the whole result dict;
+* ``close()`` after a failed ``start()`` is harmless, but a second failing start in one process
+  can crash on some malformed nets, so ``start`` checks the input files exist first.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+import tempfile
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal, ParamSpec, TypeVar
+
+import libsumo
+import numpy as np
+from numpy.typing import NDArray
+
+from crossroads.constants import SIM_STEP_S
+from crossroads.geometry import heading_to_sumo_angle
+
+Kind = Literal["vehicle", "cyclist", "pedestrian"]
+KINDS: tuple[Kind, ...] = ("vehicle", "cyclist", "pedestrian")
+
+# The ego's footprint. (choice) 4.8 m × 2.0 m, a mid-size car consistent with L_f + L_r = 2.65 m
+# wheelbase of SPEC §5. Not in constants.py yet; the safety constraints (idc/constraints.py) must
+# use the same numbers.
+EGO_TYPE_ID = "ego"
+EGO_LENGTH_M = 4.8  # [m]
+EGO_WIDTH_M = 2.0  # [m]
+
+# SUMO speed-mode bits (sumo.dlr.de/docs/TraCI/Change_Vehicle_State.html#speed_mode_0xb3).
+SPEED_MODE_DEFAULT = 31  # all checks on
+SPEED_MODE_IGNORE_ALL = 0  # no safe speed, no limits, no lights, no junctions
+
+# moveToXY keepRoute values (libsumo docstring of vehicle.moveToXY):
+KEEP_ROUTE_ON_ROUTE = 1  # map onto the closest lane of the vehicle's own route (incl. internal lanes)
+KEEP_ROUTE_ANY_EDGE = 0  # may map onto any edge; the route then becomes that edge
+KEEP_ROUTE_OFF_ROAD = 2  # like 0 but may also leave the road network
+# Bits 1|2: stay on the own route AND keep the exact x, y. Without bit 2 SUMO snaps the vehicle
+# onto the lane centre unless the sublane model is on (measured: 0.3 m offset lost with 1).
+KEEP_ROUTE_EXACT = KEEP_ROUTE_ON_ROUTE | KEEP_ROUTE_OFF_ROAD
+
+_INVALID = libsumo.INVALID_DOUBLE_VALUE
+_VEH_VARS = (
+    libsumo.VAR_POSITION, libsumo.VAR_ANGLE, libsumo.VAR_SPEED,
+    libsumo.VAR_LANE_ID, libsumo.VAR_ROAD_ID, libsumo.VAR_ROUTE_INDEX,
+)
+_PER_VARS = (libsumo.VAR_POSITION, libsumo.VAR_ANGLE, libsumo.VAR_SPEED,
+             libsumo.VAR_LANE_ID, libsumo.VAR_ROAD_ID)
+_POS, _ANG, _SPD, _LANE, _ROAD, _RIDX = _VEH_VARS
+
+
+class SumoError(RuntimeError):
+    """SUMO refused a command or failed to load; the message is SUMO's own."""
+
+
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+def _sumo_errors(fn: Callable[P, R]) -> Callable[P, R]:
+    """Re-raise libsumo's exceptions as :class:`SumoError` (the one place this is done)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
+        try:
+            return fn(*args, **kwargs)
+        except (libsumo.TraCIException, libsumo.FatalTraCIError) as exc:
+            raise SumoError(f"{fn.__name__}: {exc}") from exc
+
+    return wrapper
+
+
+@contextmanager
+def _captured_stderr() -> Iterator[Callable[[], str]]:
+    """Redirect the process's fd 2 into a temporary file; yields a reader of what was written.
+
+    SUMO (C++) writes its error messages there, not into the Python exception.
+    """
+    with tempfile.TemporaryFile(mode="w+b") as tmp:
+        saved = os.dup(2)
+        os.dup2(tmp.fileno(), 2)
+
+        def read() -> str:
+            tmp.seek(0)
+            return tmp.read().decode("utf-8", "replace")
+
+        try:
+            yield read
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
+def _option_pairs(extra_args: Sequence[str]) -> dict[str, str]:
+    """``["--a", "1", "--flag", "--b", "x"]`` → ``{"--a": "1", "--flag": "true", "--b": "x"}``."""
+    out: dict[str, str] = {}
+    toks = list(extra_args)
+    i = 0
+    while i < len(toks):
+        key = toks[i]
+        if not key.startswith("-"):
+            raise SumoError(f"extra SUMO argument {key!r} is not an option")
+        if i + 1 < len(toks) and not toks[i + 1].startswith("--"):
+            out[key] = toks[i + 1]
+            i += 2
+        else:
+            out[key] = "true"
+            i += 1
+    return out
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """Every participant SUMO has at one instant (the ego excluded), as parallel arrays.
+
+    ``x``, ``y`` [m] are footprint centres; ``heading`` [rad] CCW from +x; ``speed`` [m/s];
+    ``length``/``width`` [m]. ``lane_id``/``edge_id`` are SUMO's ("" when off the network).
+    ``route`` holds each participant's edges (vehicles: its route; pedestrians: the edges of the
+    current walk) and ``route_index`` where it is on them (-1 for pedestrians).
+    """
+
+    time_s: float
+    ids: NDArray[np.str_]
+    kind: NDArray[np.str_]
+    x: NDArray[np.float64]
+    y: NDArray[np.float64]
+    heading: NDArray[np.float64]
+    speed: NDArray[np.float64]
+    length: NDArray[np.float64]
+    width: NDArray[np.float64]
+    lane_id: NDArray[np.str_]
+    edge_id: NDArray[np.str_]
+    route_index: NDArray[np.int64]
+    route: tuple[tuple[str, ...], ...]
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def of_kind(self, kind: Kind) -> NDArray[np.bool_]:
+        """Boolean mask of the participants of one kind."""
+        return self.kind == kind
+
+    def index(self, participant_id: str) -> int:
+        """Row of a participant; KeyError if it is not in the snapshot."""
+        rows = np.flatnonzero(self.ids == participant_id)
+        if len(rows) == 0:
+            raise KeyError(participant_id)
+        return int(rows[0])
+
+
+@dataclass(frozen=True)
+class _Static:
+    """What never changes for one participant while it lives (read once, on first sight)."""
+
+    kind: Kind
+    length_m: float
+    width_m: float
+    route: tuple[str, ...]
+
+
+_ACTIVE: SumoSession | None = None  # libsumo: one simulation per process
+
+
+class SumoSession:
+    """One SUMO simulation in this process, started and closed any number of times.
+
+    Use as a context manager::
+
+        with SumoSession().start(net, [routes], seed=7) as sim:
+            sim.step(); snap = sim.snapshot()
+
+    Collisions (choice): ``--collision.action warn``, as a test bench does: SUMO reports them
+    (:meth:`collisions`) but removes and teleports nobody, so a scene stays as it was; whether the
+    ego collided is judged by the project on the true footprints (so junction-internal checks
+    between SUMO's own participants are off unless asked for, see :meth:`start`).
+    ``--time-to-teleport -1`` keeps jammed vehicles where they are instead of teleporting them.
+    """
+
+    def __init__(self) -> None:
+        self._running = False
+        self._step_length_s = SIM_STEP_S
+        self._vehicles: dict[str, None] = {}  # alive, in departure order (dict keeps order)
+        self._persons: dict[str, None] = {}
+        self._static: dict[str, _Static] = {}
+        self._egos: dict[str, float] = {}  # ego id -> length [m]
+        self._departed: tuple[str, ...] = ()
+        self._snapshot: Snapshot | None = None
+        self._args: list[str] = []
+
+    # --- life cycle ------------------------------------------------------------------------
+
+    def start(
+        self,
+        net_file: str | Path,
+        route_files: Sequence[str | Path] = (),
+        *,
+        seed: int,
+        step_length_s: float = SIM_STEP_S,
+        begin_s: float = 0.0,
+        extra_args: Sequence[str] = (),
+        check_junction_collisions: bool = False,
+    ) -> SumoSession:
+        """Load a network and its demand; returns ``self`` for ``with ... .start(...) as sim``.
+
+        ``seed`` goes to SUMO's ``--seed`` (its own RNG: driver imperfection, speed factors).
+        ``extra_args`` (``["--option", "value", ...]``) override the defaults set here.
+        ``check_junction_collisions`` turns on SUMO's collision checks inside junctions between
+        its own participants: off by default because it doubles the step time (measured 2.2 vs
+        1.1 ms per step with ~150 participants on c_three_lane) and the ego's collisions are
+        judged by the project on true footprints anyway.
+        """
+        global _ACTIVE
+        if _ACTIVE is not None:
+            raise SumoError(
+                "a SUMO session is already running in this process (libsumo holds one "
+                "simulation per process): close it first, or run simulations in separate processes"
+            )
+        files = [Path(net_file), *(Path(r) for r in route_files)]
+        for f in files:
+            if not f.is_file():
+                raise SumoError(f"SUMO input file not found: {f}")
+        options: dict[str, str] = {
+            "--net-file": str(files[0]),
+            "--seed": str(int(seed)),
+            "--step-length": f"{step_length_s:g}",
+            "--begin": f"{begin_s:g}",
+            "--pedestrian.model": "striping",
+            "--collision.action": "warn",
+            "--collision.check-junctions": "true" if check_junction_collisions else "false",
+            "--time-to-teleport": "-1",
+            "--no-step-log": "true",
+            "--no-warnings": "true",
+            "--duration-log.disable": "true",
+            "--xml-validation": "never",
+        }
+        if len(files) > 1:
+            options["--route-files"] = ",".join(str(f) for f in files[1:])
+        options.update(_option_pairs(extra_args))  # SUMO refuses an option given twice
+        args = ["sumo", *(tok for kv in options.items() for tok in kv)]
+        with _captured_stderr() as sumo_output:
+            try:
+                libsumo.start(args)
+            except (libsumo.TraCIException, libsumo.FatalTraCIError) as exc:
+                message = sumo_output().strip() or str(exc)
+                raise SumoError(f"SUMO failed to start: {message}") from exc
+        _ACTIVE = self
+        self._running = True
+        self._step_length_s = step_length_s
+        self._vehicles.clear()
+        self._persons.clear()
+        self._static.clear()
+        self._egos.clear()
+        self._departed = ()
+        self._snapshot = None
+        self._args = args
+        return self
+
+    def close(self) -> None:
+        """End the simulation (idempotent)."""
+        global _ACTIVE
+        if not self._running:
+            return
+        try:
+            libsumo.close()
+        except (libsumo.TraCIException, libsumo.FatalTraCIError):
+            pass  # closing a simulation that already ended is not an error for us
+        finally:
+            self._running = False
+            if _ACTIVE is self:
+                _ACTIVE = None
+
+    def __enter__(self) -> SumoSession:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def running(self) -> bool:
+        return self._running
+
+    @property
+    def args(self) -> tuple[str, ...]:
+        """The command line SUMO was started with (for the trace)."""
+        return tuple(self._args)
+
+    # --- time ------------------------------------------------------------------------------
+
+    @property
+    def time_s(self) -> float:
+        return libsumo.simulation.getTime()
+
+    @property
+    def step_length_s(self) -> float:
+        return self._step_length_s
+
+    @_sumo_errors
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` steps, keeping the set of alive participants and their subscriptions."""
+        sim = libsumo.simulation
+        for _ in range(n):
+            libsumo.simulationStep()
+            for vid in sim.getArrivedIDList():
+                self._forget(vid, self._vehicles)
+            for pid in sim.getArrivedPersonIDList():
+                self._forget(pid, self._persons)
+            departed = sim.getDepartedIDList()
+            for vid in departed:
+                if vid not in self._egos:
+                    libsumo.vehicle.subscribe(vid, _VEH_VARS)
+                    self._vehicles[vid] = None
+            pdeparted = sim.getDepartedPersonIDList()
+            for pid in pdeparted:
+                libsumo.person.subscribe(pid, _PER_VARS)
+                self._persons[pid] = None
+            self._departed = tuple(departed) + tuple(pdeparted)
+        self._snapshot = None
+
+    def _forget(self, pid: str, alive: dict[str, None]) -> None:
+        alive.pop(pid, None)
+        self._static.pop(pid, None)
+        self._egos.pop(pid, None)
+
+    @property
+    def departed_last_step(self) -> tuple[str, ...]:
+        """Vehicles and persons that entered the network in the last step (ego excluded)."""
+        return self._departed
+
+    # --- the snapshot ----------------------------------------------------------------------
+
+    def _static_of(self, pid: str, is_person: bool) -> _Static:
+        st = self._static.get(pid)
+        if st is None:
+            if is_person:
+                dom = libsumo.person
+                kind: Kind = "pedestrian"
+                route = tuple(dom.getEdges(pid))
+            else:
+                dom = libsumo.vehicle
+                kind = "cyclist" if dom.getVehicleClass(pid) == "bicycle" else "vehicle"
+                route = tuple(dom.getRoute(pid))
+            st = _Static(kind, dom.getLength(pid), dom.getWidth(pid), route)
+            self._static[pid] = st
+        return st
+
+    @_sumo_errors
+    def snapshot(self) -> Snapshot:
+        """All participants now (ego excluded), from the step's subscriptions; cached per step.
+
+        Vehicle and pedestrian positions from SUMO are the middle of the front edge; the centre is
+        half a length behind it along the heading. (For pedestrians that is ≤ 0.11 m.)
+        """
+        if self._snapshot is not None:
+            return self._snapshot
+        vres = libsumo.vehicle.getAllSubscriptionResults()
+        pres = libsumo.person.getAllSubscriptionResults()
+        ids: list[str] = []
+        statics: list[_Static] = []
+        rows: list[tuple[float, float, float, float]] = []
+        lanes: list[str] = []
+        roads: list[str] = []
+        ridx: list[int] = []
+        cache = self._static
+        for alive, results, is_person in ((self._vehicles, vres, False), (self._persons, pres, True)):
+            for pid in alive:
+                r = results.get(pid)
+                if r is None:
+                    continue
+                pos = r[_POS]
+                if pos[0] == _INVALID:  # known but not on the network (e.g. waiting to insert)
+                    continue
+                ids.append(pid)
+                st = cache.get(pid)
+                statics.append(st if st is not None else self._static_of(pid, is_person))
+                rows.append((pos[0], pos[1], r[_ANG], r[_SPD]))
+                lanes.append(r[_LANE])
+                roads.append(r[_ROAD])
+                ridx.append(-1 if is_person else r[_RIDX])
+        n = len(ids)
+        arr = np.array(rows, dtype=np.float64).reshape(n, 4)
+        length = np.array([s.length_m for s in statics], dtype=np.float64)
+        heading = np.radians(90.0 - arr[:, 2])
+        heading = (heading + np.pi) % (2.0 * np.pi) - np.pi
+        half = 0.5 * length
+        snap = Snapshot(
+            time_s=self.time_s,
+            ids=np.array(ids, dtype=np.str_),
+            kind=np.array([s.kind for s in statics], dtype="<U10"),
+            x=arr[:, 0] - half * np.cos(heading),
+            y=arr[:, 1] - half * np.sin(heading),
+            heading=heading,
+            speed=arr[:, 3].copy(),
+            length=length,
+            width=np.array([s.width_m for s in statics], dtype=np.float64),
+            lane_id=np.array(lanes, dtype=np.str_),
+            edge_id=np.array(roads, dtype=np.str_),
+            route_index=np.array(ridx, dtype=np.int64),
+            route=tuple(s.route for s in statics),
+        )
+        self._snapshot = snap
+        return snap
+
+    @property
+    def vehicle_ids(self) -> tuple[str, ...]:
+        """Alive SUMO vehicles (cars and bicycles), ego excluded, in departure order."""
+        return tuple(self._vehicles)
+
+    @property
+    def person_ids(self) -> tuple[str, ...]:
+        return tuple(self._persons)
+
+    # --- the ego ---------------------------------------------------------------------------
+
+    @_sumo_errors
+    def add_ego(
+        self,
+        ego_id: str,
+        route_edges: Sequence[str],
+        *,
+        depart_lane: int = 0,
+        depart_pos_m: float = 0.0,
+        depart_speed_mps: float = 0.0,
+        length_m: float = EGO_LENGTH_M,
+        width_m: float = EGO_WIDTH_M,
+    ) -> None:
+        """Insert the ego as a SUMO vehicle of type "ego" with its real footprint.
+
+        It departs "now" (inserted in the next step); place it exactly with :meth:`move_ego`
+        right after adding. SUMO never drives it: its speed mode and lane-change mode are 0 and
+        every step's pose comes from :meth:`move_ego`. ``depart_pos_m`` is the front bumper's
+        position along the lane [m].
+        """
+        vt = libsumo.vehicletype
+        if EGO_TYPE_ID not in vt.getIDList():
+            vt.copy("DEFAULT_VEHTYPE", EGO_TYPE_ID)
+            vt.setVehicleClass(EGO_TYPE_ID, "passenger")
+        vt.setLength(EGO_TYPE_ID, length_m)
+        vt.setWidth(EGO_TYPE_ID, width_m)
+        vt.setColor(EGO_TYPE_ID, (255, 0, 0, 255))
+        route_id = f"__route_{ego_id}"
+        libsumo.route.add(route_id, list(route_edges))
+        libsumo.vehicle.add(
+            ego_id, route_id, typeID=EGO_TYPE_ID, depart="now", departLane=str(depart_lane),
+            departPos=f"{depart_pos_m:g}", departSpeed=f"{depart_speed_mps:g}",
+        )
+        libsumo.vehicle.setSpeedMode(ego_id, SPEED_MODE_IGNORE_ALL)
+        libsumo.vehicle.setLaneChangeMode(ego_id, 0)
+        self._egos[ego_id] = length_m
+
+    @_sumo_errors
+    def move_ego(
+        self,
+        ego_id: str,
+        x: float,
+        y: float,
+        heading_rad: float,
+        speed_mps: float,
+        *,
+        edge_hint: str = "",
+        lane_hint: int = -1,
+        keep_route: int = KEEP_ROUTE_EXACT,
+    ) -> None:
+        """Mirror the ego's pose (footprint centre ``x``, ``y`` [m], heading) and speed into SUMO.
+
+        keepRoute (choice) = 3 (:data:`KEEP_ROUTE_EXACT`): the ego stays mapped onto the lanes of
+        its own route (internal lanes included), so SUMO drivers behind it see it as their leader
+        and junction foes see it on its link, and SUMO keeps the exact commanded x, y even off the
+        lane centre (with keepRoute=1 alone it would snap onto the centre line).
+        ``setSpeed`` first so SUMO reports (and followers use) the ego's true speed.
+        """
+        length = self._egos.get(ego_id, EGO_LENGTH_M)
+        half = 0.5 * length
+        fx = x + half * math.cos(heading_rad)
+        fy = y + half * math.sin(heading_rad)
+        libsumo.vehicle.setSpeed(ego_id, max(0.0, speed_mps))
+        libsumo.vehicle.moveToXY(ego_id, edge_hint, lane_hint, fx, fy,
+                                 heading_to_sumo_angle(heading_rad), keep_route)
+        self._snapshot = None
+
+    @_sumo_errors
+    def vehicle_pose(self, vehicle_id: str) -> tuple[float, float, float, float]:
+        """(x, y, heading, speed) of any vehicle, ego included, straight from SUMO (centre)."""
+        v = libsumo.vehicle
+        fx, fy = v.getPosition(vehicle_id)
+        heading = math.radians(90.0 - v.getAngle(vehicle_id))
+        half = 0.5 * v.getLength(vehicle_id)
+        return (fx - half * math.cos(heading), fy - half * math.sin(heading),
+                math.atan2(math.sin(heading), math.cos(heading)), v.getSpeed(vehicle_id))
+
+    @_sumo_errors
+    def vehicle_size(self, vehicle_id: str) -> tuple[float, float]:
+        """(length, width) [m] SUMO uses for a vehicle, ego included."""
+        return libsumo.vehicle.getLength(vehicle_id), libsumo.vehicle.getWidth(vehicle_id)
+
+    # --- other vehicles --------------------------------------------------------------------
+
+    @_sumo_errors
+    def move_vehicle(self, vehicle_id: str, x: float, y: float, heading_rad: float, *,
+                     edge_hint: str = "", lane_hint: int = -1,
+                     keep_route: int = KEEP_ROUTE_EXACT) -> None:
+        """Place any vehicle by its footprint centre for this step (as :meth:`move_ego`)."""
+        half = 0.5 * libsumo.vehicle.getLength(vehicle_id)
+        libsumo.vehicle.moveToXY(
+            vehicle_id, edge_hint, lane_hint, x + half * math.cos(heading_rad),
+            y + half * math.sin(heading_rad), heading_to_sumo_angle(heading_rad), keep_route)
+        self._snapshot = None
+
+    @_sumo_errors
+    def set_speed(self, vehicle_id: str, speed_mps: float) -> None:
+        """Command a speed [m/s] (−1 gives control back to the car-following model)."""
+        libsumo.vehicle.setSpeed(vehicle_id, speed_mps)
+
+    @_sumo_errors
+    def speed_without_traci(self, vehicle_id: str) -> float:
+        """The speed [m/s] SUMO's own driver model would choose now (ignoring our commands)."""
+        return libsumo.vehicle.getSpeedWithoutTraCI(vehicle_id)
+
+    @_sumo_errors
+    def set_speed_factor(self, vehicle_id: str, factor: float) -> None:
+        """Desired speed = factor × lane speed limit (capped by the vehicle's max speed)."""
+        libsumo.vehicle.setSpeedFactor(vehicle_id, factor)
+
+    @_sumo_errors
+    def set_speed_mode(self, vehicle_id: str, mode: int) -> None:
+        libsumo.vehicle.setSpeedMode(vehicle_id, mode)
+
+    @_sumo_errors
+    def set_max_speed(self, vehicle_id: str, speed_mps: float) -> None:
+        libsumo.vehicle.setMaxSpeed(vehicle_id, speed_mps)
+
+    @_sumo_errors
+    def set_lane_change_mode(self, vehicle_id: str, mode: int) -> None:
+        libsumo.vehicle.setLaneChangeMode(vehicle_id, mode)
+
+    @_sumo_errors
+    def vehicle_route(self, vehicle_id: str) -> tuple[str, ...]:
+        return tuple(libsumo.vehicle.getRoute(vehicle_id))
+
+    @_sumo_errors
+    def vehicle_lane(self, vehicle_id: str) -> str:
+        return libsumo.vehicle.getLaneID(vehicle_id)
+
+    @_sumo_errors
+    def vehicle_class(self, vehicle_id: str) -> str:
+        return libsumo.vehicle.getVehicleClass(vehicle_id)
+
+    @_sumo_errors
+    def vehicle_type(self, vehicle_id: str) -> str:
+        return libsumo.vehicle.getTypeID(vehicle_id)
+
+    @_sumo_errors
+    def remove(self, participant_id: str) -> None:
+        """Take a vehicle or a person out of the simulation now."""
+        if participant_id in self._persons:
+            libsumo.person.remove(participant_id)
+            self._forget(participant_id, self._persons)
+        else:
+            libsumo.vehicle.remove(participant_id)
+            self._forget(participant_id, self._vehicles)
+        self._snapshot = None
+
+    @_sumo_errors
+    def collisions(self) -> list[tuple[str, str, str]]:
+        """Collisions SUMO detected in the last step: (collider, victim, type)."""
+        return [(c.collider, c.victim, c.type) for c in libsumo.simulation.getCollisions()]
+
+    # --- traffic lights --------------------------------------------------------------------
+
+    @_sumo_errors
+    def tl_ids(self) -> tuple[str, ...]:
+        return tuple(libsumo.trafficlight.getIDList())
+
+    @_sumo_errors
+    def tl_state(self, tl_id: str) -> str:
+        """The signal state string now, one character per link index (SUMO's rRgGyYuoOs)."""
+        return libsumo.trafficlight.getRedYellowGreenState(tl_id)
+
+    @_sumo_errors
+    def tl_phase(self, tl_id: str) -> int:
+        return libsumo.trafficlight.getPhase(tl_id)
+
+    @_sumo_errors
+    def tl_time_to_switch_s(self, tl_id: str) -> float:
+        """Seconds until the current phase ends."""
+        return libsumo.trafficlight.getNextSwitch(tl_id) - libsumo.simulation.getTime()
+
+    @_sumo_errors
+    def set_tl_phase(self, tl_id: str, phase_index: int) -> None:
+        libsumo.trafficlight.setPhase(tl_id, phase_index)
+
+    @_sumo_errors
+    def set_tl_phase_duration(self, tl_id: str, remaining_s: float) -> None:
+        """Make the *current* phase end ``remaining_s`` from now (later cycles are unchanged)."""
+        libsumo.trafficlight.setPhaseDuration(tl_id, remaining_s)
+
+    @_sumo_errors
+    def tl_controlled_links(self, tl_id: str) -> list[list[tuple[str, str, str]]]:
+        """Per link index, the (from lane, to lane, via lane) triples it controls."""
+        return [[tuple(t) for t in links] for links in libsumo.trafficlight.getControlledLinks(tl_id)]
+
+    # --- lanes -----------------------------------------------------------------------------
+
+    @_sumo_errors
+    def lane_ids(self) -> tuple[str, ...]:
+        """Every lane of the network, internal lanes (":<junction>_…") included."""
+        return tuple(libsumo.lane.getIDList())
+
+    @_sumo_errors
+    def lane_max_speed(self, lane_id: str) -> float:
+        return libsumo.lane.getMaxSpeed(lane_id)
+
+    @_sumo_errors
+    def set_lane_max_speed(self, lane_id: str, speed_mps: float) -> None:
+        libsumo.lane.setMaxSpeed(lane_id, speed_mps)
+
+    @_sumo_errors
+    def lane_allowed(self, lane_id: str) -> tuple[str, ...]:
+        return tuple(libsumo.lane.getAllowed(lane_id))
+
+    @_sumo_errors
+    def lane_shape(self, lane_id: str) -> NDArray[np.float64]:
+        return np.array(libsumo.lane.getShape(lane_id), dtype=np.float64)
+
+
+def active_session() -> SumoSession | None:
+    """The session running in this process, if any."""
+    return _ACTIVE

@@ -1,0 +1,236 @@
+"""Mixed traffic demand for one junction (SPEC §2), written as a SUMO ``.rou.xml``.
+
+Per entrance lane: vehicles 400/h, cyclists 100/h, pedestrians 100/h by default. Every departure
+time is drawn here from the scenario seed (a Poisson process: exponential gaps with numpy), so the
+demand is fully determined by the seed and never depends on SUMO's RNG. Departures start at t = 0
+so that the world's warm-up fills the intersection.
+
+* Vehicles: on each entrance lane, its own rate split evenly over the lane's turns (left,
+  straight, right; U-turns are left out); ``departLane`` is that lane.
+* Cyclists: per leg, ``n_lanes × rate`` on the bike lane if the leg has one, else on the rightmost
+  lane, to the exits the leg's car connections reach.
+* Pedestrians: per leg, ``n_lanes × rate`` walking from the leg's sidewalk near the junction to a
+  sidewalk of another leg; SUMO's router takes them over the crossings. Nets without sidewalks or
+  crossings (cologne1) get no pedestrians, and :class:`DemandPlan` ``notes`` says so.
+
+Trips (``from``/``to`` edges) rather than fixed routes: inside clustered junctions the exit edge
+need not follow the entrance edge directly, and SUMO's router finds the path through.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from crossroads.constants import (
+    CYCLISTS_PER_HOUR_PER_LANE,
+    PEDESTRIANS_PER_HOUR_PER_LANE,
+    VEHICLES_PER_HOUR_PER_LANE,
+)
+from crossroads.network.model import TASKS, Approach, Junction
+
+log = logging.getLogger(__name__)
+
+CAR_TYPE = "car"
+BIKE_TYPE = "bicycle"
+PED_TYPE = "pedestrian"
+
+# vType attributes. (choice) Cars: Krauss with sigma 0.5 (SUMO's default imperfection); their
+# speed factor never exceeds 1, so a normal driver never drives over the limit — over-speeding is
+# only what sim/abnormal.py makes on purpose (SPEC §8).
+VTYPES_XML = f"""    <vType id="{CAR_TYPE}" vClass="passenger" length="4.5" width="1.8" minGap="2.5"
+           accel="2.6" decel="4.5" sigma="0.5" speedFactor="normc(0.95,0.05,0.8,1.0)"
+           carFollowModel="Krauss" laneChangeModel="LC2013" color="yellow"/>
+    <vType id="{BIKE_TYPE}" vClass="bicycle" length="1.6" width="0.65" minGap="0.5"
+           maxSpeed="5.5" accel="1.2" decel="3.0" sigma="0.5" speedFactor="normc(1.0,0.1,0.7,1.0)"
+           color="green"/>
+    <vType id="{PED_TYPE}" vClass="pedestrian" length="0.25" width="0.5" maxSpeed="1.4"
+           speedFactor="normc(1.0,0.1,0.6,1.3)" color="blue"/>
+"""
+
+PED_START_BEFORE_JUNCTION_M = (3.0, 25.0)  # [m] pedestrians start this far from the junction
+PED_END_AFTER_JUNCTION_M = (3.0, 25.0)  # [m] and walk this far past it on the target sidewalk
+
+
+@dataclass(frozen=True)
+class TrafficDemand:
+    """Traffic per entrance lane [per hour]; 0 means no such traffic."""
+
+    vehicles_per_hour: float = VEHICLES_PER_HOUR_PER_LANE  # [veh/h] per entrance lane
+    cyclists_per_hour: float = CYCLISTS_PER_HOUR_PER_LANE  # [bic/h] per entrance lane
+    pedestrians_per_hour: float = PEDESTRIANS_PER_HOUR_PER_LANE  # [ped/h] per entrance lane
+
+    def __post_init__(self) -> None:
+        for name in ("vehicles_per_hour", "cyclists_per_hour", "pedestrians_per_hour"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"TrafficDemand.{name} must be a finite number >= 0, got {value}")
+
+
+@dataclass(frozen=True)
+class Departure:
+    """One vehicle, cyclist or pedestrian of the plan."""
+
+    id: str
+    kind: str  # "vehicle" | "cyclist" | "pedestrian"
+    depart_s: float  # [s]
+    from_edge: str
+    to_edge: str
+    depart_lane: int | None = None  # vehicles and cyclists
+    turn: str | None = None  # vehicles and cyclists: "left" | "straight" | "right"
+    depart_pos_m: float | None = None  # pedestrians: position on the from-edge [m]
+    arrival_pos_m: float | None = None  # pedestrians: position on the to-edge [m]
+
+
+@dataclass(frozen=True)
+class DemandPlan:
+    """Everything a route file will contain, sorted by departure, plus what was left out."""
+
+    departures: tuple[Departure, ...]
+    notes: tuple[str, ...] = field(default=())
+
+    def count(self, kind: str) -> int:
+        return sum(1 for d in self.departures if d.kind == kind)
+
+
+def poisson_times(rng: np.random.Generator, rate_per_hour: float, duration_s: float) -> np.ndarray:
+    """Departure times [s] in [0, duration_s) of a Poisson process of the given rate."""
+    if rate_per_hour <= 0.0 or duration_s <= 0.0:
+        return np.zeros(0)
+    mean_gap_s = 3600.0 / rate_per_hour
+    # Draw enough gaps in one go (mean + 6 sigma of the count), then cut at the horizon.
+    expected = duration_s / mean_gap_s
+    n = int(expected + 6.0 * math.sqrt(expected) + 10)
+    times = np.cumsum(rng.exponential(mean_gap_s, size=n))
+    return times[times < duration_s]
+
+
+def _exits_by_turn(approach: Approach, lane_id: str | None = None) -> dict[str, str]:
+    """Turn → exit edge of an approach's car connections (of one lane if given); no U-turns."""
+    out: dict[str, str] = {}
+    for c in approach.connections:
+        if c.turn in TASKS and (lane_id is None or c.from_lane == lane_id):
+            out.setdefault(c.turn, c.to_lane.rsplit("_", 1)[0])
+    return out
+
+
+def _has_pedestrian_network(junction: Junction) -> bool:
+    return bool(junction.crossings) and bool(junction.sidewalks)
+
+
+def build_plan(junction: Junction, demand: TrafficDemand, *, seed: int,
+               duration_s: float) -> DemandPlan:
+    """The demand of a junction for ``duration_s`` [s], drawn from ``seed`` (pure, no files)."""
+    rng = np.random.default_rng(seed)
+    deps: list[Departure] = []
+    notes: list[str] = []
+
+    for a in junction.approaches:
+        # --- vehicles: per entrance lane, its rate split over the lane's turns
+        for lane in a.entrance_lanes:
+            turns = _exits_by_turn(a, lane.id)
+            if not turns:
+                continue
+            names = sorted(turns)
+            for t in poisson_times(rng, demand.vehicles_per_hour, duration_s):
+                turn = names[int(rng.integers(len(names)))]
+                deps.append(Departure("", "vehicle", float(t), a.incoming_edge, turns[turn],
+                                      depart_lane=lane.index, turn=turn))
+        # --- cyclists: per leg, on its bike lane or its rightmost lane
+        exits = _exits_by_turn(a)
+        if exits and a.entrance_lanes:
+            bike = next((b for b in junction.bike_lanes if b.edge_id == a.incoming_edge), None)
+            if bike is not None:
+                lane_index = bike.index
+            else:  # the rightmost car lane that admits bicycles (index 0 may be a sidewalk)
+                lane_index = next((ln.index for ln in a.entrance_lanes
+                                   if "bicycle" in ln.allowed_classes), a.entrance_lanes[0].index)
+            names = sorted(exits)
+            rate = demand.cyclists_per_hour * len(a.entrance_lanes)
+            for t in poisson_times(rng, rate, duration_s):
+                turn = names[int(rng.integers(len(names)))]
+                deps.append(Departure("", "cyclist", float(t), a.incoming_edge, exits[turn],
+                                      depart_lane=lane_index, turn=turn))
+
+    # --- pedestrians: from a leg's sidewalk (near the junction) to another leg's sidewalk
+    if demand.pedestrians_per_hour > 0:
+        if not _has_pedestrian_network(junction):
+            notes.append(
+                f"no pedestrians: junction {junction.id!r} of {junction.net_file} has "
+                f"{len(junction.sidewalks)} sidewalks and {len(junction.crossings)} crossings"
+            )
+        else:
+            walks = {lane.edge_id: lane for lane in junction.sidewalks}
+            legs = [a for a in junction.approaches if a.incoming_edge in walks]
+            targets = [a.outgoing_edge for a in junction.approaches
+                       if a.outgoing_edge is not None and a.outgoing_edge in walks]
+            for a in legs:
+                start = walks[a.incoming_edge]
+                choices = [e for e in targets if e != a.outgoing_edge]
+                if not choices:
+                    continue
+                rate = demand.pedestrians_per_hour * max(1, len(a.entrance_lanes))
+                for t in poisson_times(rng, rate, duration_s):
+                    to_edge = choices[int(rng.integers(len(choices)))]
+                    end = walks[to_edge]
+                    before = rng.uniform(*PED_START_BEFORE_JUNCTION_M)
+                    after = rng.uniform(*PED_END_AFTER_JUNCTION_M)
+                    deps.append(Departure(
+                        "", "pedestrian", float(t), a.incoming_edge, to_edge,
+                        depart_pos_m=max(0.0, start.length_m - before),
+                        arrival_pos_m=min(end.length_m, after),
+                    ))
+            if not legs:
+                notes.append(f"no pedestrians: no approach of {junction.id!r} has a sidewalk")
+
+    deps.sort(key=lambda d: (d.depart_s, d.kind, d.from_edge, d.to_edge))
+    counters = {"vehicle": 0, "cyclist": 0, "pedestrian": 0}
+    prefix = {"vehicle": "veh", "cyclist": "bike", "pedestrian": "ped"}
+    named = []
+    for d in deps:
+        named.append(Departure(f"{prefix[d.kind]}{counters[d.kind]}", d.kind, round(d.depart_s, 2),
+                               d.from_edge, d.to_edge, d.depart_lane, d.turn,
+                               d.depart_pos_m, d.arrival_pos_m))
+        counters[d.kind] += 1
+    for note in notes:
+        log.warning(note)
+    return DemandPlan(tuple(named), tuple(notes))
+
+
+def _xml_of(d: Departure) -> str:
+    if d.kind == "pedestrian":
+        return (f'    <person id={quoteattr(d.id)} type="{PED_TYPE}" depart="{d.depart_s:.2f}" '
+                f'departPos="{d.depart_pos_m:.2f}">\n'
+                f'        <walk from={quoteattr(d.from_edge)} to={quoteattr(d.to_edge)} '
+                f'arrivalPos="{d.arrival_pos_m:.2f}"/>\n    </person>\n')
+    vtype = CAR_TYPE if d.kind == "vehicle" else BIKE_TYPE
+    return (f'    <trip id={quoteattr(d.id)} type="{vtype}" depart="{d.depart_s:.2f}" '
+            f'from={quoteattr(d.from_edge)} to={quoteattr(d.to_edge)} '
+            f'departLane="{d.depart_lane}" departSpeed="max" departPos="base"/>\n')
+
+
+def write_plan(plan: DemandPlan, path: str | Path) -> Path:
+    """Write a plan as a SUMO route file (vTypes, then every departure in time order)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", encoding="utf-8") as f:
+        f.write('<?xml version="1.0" encoding="UTF-8"?>\n<routes>\n')
+        for note in plan.notes:
+            f.write(f"    <!-- {note.replace('--', '- -')} -->\n")
+        f.write(VTYPES_XML)
+        for d in plan.departures:
+            f.write(_xml_of(d))
+        f.write("</routes>\n")
+    return path
+
+
+def write_routes(junction: Junction, demand: TrafficDemand, path: str | Path, *, seed: int,
+                 duration_s: float) -> Path:
+    """Draw the demand of ``junction`` from ``seed`` for ``duration_s`` [s] and write it to
+    ``path`` (a ``.rou.xml``). What had to be left out is logged and written as XML comments."""
+    return write_plan(build_plan(junction, demand, seed=seed, duration_s=duration_s), path)

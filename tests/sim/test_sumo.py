@@ -1,0 +1,171 @@
+"""SumoSession against real SUMO runs (libsumo: one simulation per process, so sessions run one
+after the other and are always closed)."""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from crossroads.network import catalogue
+from crossroads.network.junction import read_junction
+from crossroads.sim.sumo import EGO_LENGTH_M, EGO_WIDTH_M, SumoError, SumoSession, active_session
+from crossroads.sim.traffic import TrafficDemand, write_routes
+
+NET = "b_two_lane"
+
+
+@pytest.fixture(scope="module")
+def net_and_routes(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
+    net = catalogue.build(NET)
+    junction = read_junction(net)
+    d = tmp_path_factory.mktemp("sumo")
+    r1 = write_routes(junction, TrafficDemand(), d / "s1.rou.xml", seed=1, duration_s=120)
+    r2 = write_routes(junction, TrafficDemand(), d / "s2.rou.xml", seed=2, duration_s=120)
+    return net, r1, r2
+
+
+def _trajectory(net: Path, routes: Path, seed: int, steps: int) -> list[tuple]:
+    out = []
+    with SumoSession().start(net, [routes], seed=seed) as sim:
+        for _ in range(steps):
+            sim.step()
+            s = sim.snapshot()
+            out.append((s.ids.tolist(), s.kind.tolist(), s.x.copy(), s.y.copy(),
+                        s.heading.copy(), s.speed.copy(), s.lane_id.tolist(), s.route))
+    return out
+
+
+def _same(a: list[tuple], b: list[tuple]) -> bool:
+    for fa, fb in zip(a, b, strict=True):
+        for va, vb in zip(fa, fb, strict=True):
+            if isinstance(va, np.ndarray):
+                if va.shape != vb.shape or not np.array_equal(va, vb):
+                    return False
+            elif va != vb:
+                return False
+    return True
+
+
+def test_same_seed_same_snapshots_every_step_and_other_seed_differs(net_and_routes) -> None:
+    net, r1, r2 = net_and_routes
+    a = _trajectory(net, r1, 1, 300)
+    b = _trajectory(net, r1, 1, 300)
+    assert sum(len(f[0]) for f in a) > 0
+    assert _same(a, b)
+    c = _trajectory(net, r2, 2, 300)
+    assert not _same(a, c)
+    d = _trajectory(net, r1, 2, 300)  # same demand, other SUMO seed: driver randomness differs
+    assert not _same(a, d)
+
+
+def test_one_session_per_process_and_restart(net_and_routes) -> None:
+    net, r1, _ = net_and_routes
+    first = SumoSession().start(net, [r1], seed=0)
+    try:
+        assert active_session() is first
+        with pytest.raises(SumoError, match="already running"):
+            SumoSession().start(net, [r1], seed=0)
+    finally:
+        first.close()
+    assert active_session() is None
+    first.close()  # idempotent
+    with first.start(net, [r1], seed=0) as again:  # restartable
+        again.step(10)
+        assert again.time_s == pytest.approx(1.0)
+    assert not first.running
+
+
+def test_bad_net_surfaces_sumo_message(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.net.xml"
+    bad.write_text("this is not a network\n")
+    with pytest.raises(SumoError, match="invalid document structure"):
+        SumoSession().start(bad, seed=0)
+    with pytest.raises(SumoError, match="not found"):
+        SumoSession().start(tmp_path / "missing.net.xml", seed=0)
+    assert active_session() is None
+
+
+def test_snapshot_fields_and_centre_convention(net_and_routes) -> None:
+    net, r1, _ = net_and_routes
+    with SumoSession().start(net, [r1], seed=3) as sim:
+        sim.step(600)
+        s = sim.snapshot()
+        assert len(s) > 10 and set(s.kind) <= {"vehicle", "cyclist", "pedestrian"}
+        assert {"vehicle", "cyclist", "pedestrian"} <= set(s.kind)
+        for i in np.flatnonzero(s.kind == "vehicle")[:5]:
+            vid = str(s.ids[i])
+            x, y, h, v = sim.vehicle_pose(vid)
+            assert (x, y) == pytest.approx((s.x[i], s.y[i]), abs=1e-6)
+            assert h == pytest.approx(s.heading[i], abs=1e-9)
+            assert len(s.route[i]) >= 2
+            assert s.edge_id[i].startswith(":") or s.edge_id[i] == s.route[i][s.route_index[i]]
+            assert s.route_index[i] >= 0
+        assert np.all(s.route_index[s.kind == "pedestrian"] == -1)
+        assert np.all(np.abs(s.heading) <= math.pi)
+
+
+def test_ego_footprint_exact_pose_and_followers_brake(tmp_path: Path) -> None:
+    net = catalogue.build(NET)
+    j = read_junction(net)
+    south = j.default_approach()
+    lane = south.entrance_lanes[0]
+    conn = next(c for c in south.connections if c.from_lane == lane.id)
+    exit_edge = conn.to_lane.rsplit("_", 1)[0]
+    routes = tmp_path / "follower.rou.xml"
+    routes.write_text(
+        f'<routes><vType id="car" vClass="passenger" sigma="0"/>'
+        f'<trip id="f0" type="car" depart="0" from="{south.incoming_edge}" to="{exit_edge}" '
+        f'departLane="{lane.index}" departSpeed="max"/></routes>')
+    with SumoSession().start(net, [routes], seed=0) as sim:
+        sim.add_ego("ego", [south.incoming_edge, exit_edge], depart_lane=lane.index)
+        s_ego = 0.6 * lane.length_m
+        cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(lane.centerline, axis=0).T))])
+        x = float(np.interp(s_ego, cum, lane.centerline[:, 0]))
+        y = float(np.interp(s_ego, cum, lane.centerline[:, 1]))
+        h = lane.start_heading
+        # 0.3 m off the centre line, slightly rotated: SUMO must keep it exactly.
+        cmd = (x + 0.3 * math.cos(h - math.pi / 2), y + 0.3 * math.sin(h - math.pi / 2), h + 0.02)
+        sim.move_ego("ego", *cmd, 0.0)
+        for _ in range(300):
+            sim.step()
+            sim.move_ego("ego", *cmd, 0.0)
+            ex, ey, eh, ev = sim.vehicle_pose("ego")
+            assert math.hypot(ex - cmd[0], ey - cmd[1]) < 0.01
+            assert abs(eh - cmd[2]) < 1e-6
+        assert "ego" not in set(sim.snapshot().ids)
+        assert sim.vehicle_size("ego") == (EGO_LENGTH_M, EGO_WIDTH_M)
+        snap = sim.snapshot()
+        i = snap.index("f0")
+        assert snap.speed[i] < 0.1  # stopped behind the ego
+        gap = math.hypot(snap.x[i] - cmd[0], snap.y[i] - cmd[1]) - 0.5 * (EGO_LENGTH_M + snap.length[i])
+        assert 0.5 < gap < 6.0
+
+
+def test_snapshot_rate_with_about_100_participants(tmp_path: Path) -> None:
+    """Measures step + snapshot rate on c_three_lane under the paper's demand (printed)."""
+    net = catalogue.build("c_three_lane")
+    j = read_junction(net)
+    routes = write_routes(j, TrafficDemand(), tmp_path / "rate.rou.xml", seed=5,
+                          duration_s=200)
+    with SumoSession().start(net, [routes], seed=5) as sim:
+        sim.step(450)
+        n0 = len(sim.snapshot())
+        steps = 300
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            sim.step()
+            sim.snapshot()
+        dt = time.perf_counter() - t0
+        t1 = time.perf_counter()
+        for _ in range(steps):
+            sim._snapshot = None  # force the snapshot to be rebuilt: measure it alone
+            sim.snapshot()
+        snap_only = (time.perf_counter() - t1) / steps
+    rate = steps / dt
+    print(f"\n{n0} participants: {rate:.0f} step+snapshot/s, snapshot alone {1e3 * snap_only:.3f} ms")
+    assert n0 >= 60
+    assert rate > 300

@@ -1,0 +1,80 @@
+"""The ``crossroads`` command end to end, through its real entry point."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from support import COLOGNE1_NET, REPO_ROOT
+
+
+def crossroads(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "crossroads.cli", *args],
+        capture_output=True, text=True, cwd=REPO_ROOT, timeout=300,
+    )
+
+
+def test_net_list_prints_the_six_paper_intersections() -> None:
+    result = crossroads("net", "list")
+    assert result.returncode == 0, result.stderr
+    names = result.stdout.split()
+    assert len(names) >= 6
+    assert names == sorted(names)
+
+
+def test_net_build_writes_a_sumo_network(tmp_path: Path) -> None:
+    name = crossroads("net", "list").stdout.split()[0]
+    result = crossroads("net", "build", name, "-o", str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    out = Path(result.stdout.strip())
+    assert out.parent == tmp_path and out.name.endswith(".net.xml")
+    assert "<tlLogic" in out.read_text()
+
+
+def test_paths_json_has_the_documented_fields(tmp_path: Path) -> None:
+    name = crossroads("net", "list").stdout.split()[0]
+    plot = tmp_path / "paths.png"
+    result = crossroads("paths", name, "--task", "left", "--json", "--plot", str(plot))
+    assert result.returncode == 0, result.stderr
+    candidates = json.loads(result.stdout)
+    assert candidates, "at least one left-turn candidate"
+    for c in candidates:
+        assert {"id", "task", "entrance_lane", "exit_lane", "control_points", "points",
+                "segment", "v_pass", "v_stop"} <= set(c)
+        assert c["task"] == "left"
+        assert len(c["control_points"]) == 6
+        assert all(len(row) == 5 for row in c["points"])
+        assert len(c["segment"]) == len(c["points"]) == len(c["v_pass"]) == len(c["v_stop"])
+    assert plot.stat().st_size > 10_000
+
+
+def test_paths_on_a_real_city_network() -> None:
+    result = crossroads("paths", str(COLOGNE1_NET), "--task", "straight")
+    assert result.returncode == 0, result.stderr
+    assert "candidate" in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("paths", "no_such_place", "--task", "left"), "no intersection 'no_such_place'"),
+        (("paths", "missing.net.xml", "--task", "left"), "does not exist"),
+        (("net", "build", "nowhere.yaml", "-o", "/tmp/x"), "nowhere.yaml"),
+    ],
+)
+def test_bad_input_gets_one_clear_line(args: tuple[str, ...], message: str) -> None:
+    result = crossroads(*args)
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_bad_task_is_rejected_by_name() -> None:
+    result = crossroads("paths", "x", "--task", "backwards")
+    assert result.returncode != 0
+    assert "--task" in result.stderr
