@@ -36,7 +36,6 @@ import numpy as np
 import shapely
 from shapely.geometry import LineString, MultiPoint, Point, Polygon
 from shapely.geometry.base import BaseGeometry
-from shapely.ops import unary_union
 
 from crossroads.geometry import (
     FloatArray,
@@ -82,6 +81,8 @@ MAX_DEFAULT_CANDIDATES = 50  # traffic-light nodes tried, nearest first, for the
 MIN_AREA_M2 = 0.5  # [m²] polygons smaller than this are treated as degenerate
 CAR_CLASS = "passenger"
 FOOT_CLASSES = frozenset({"pedestrian", "wheelchair"})
+
+UNION_GRID_M = 1e-6  # [m] precision grid for polygon unions (see the drivable area)
 
 
 class JunctionError(ValueError):
@@ -538,7 +539,8 @@ def _median(net: NetXml, inc: EdgeRec, out: EdgeRec, inner_sign: float) -> Polyg
     if median is None:
         return None
     # never let the median reach onto a lane (a skewed leg can make the ring overlap them)
-    lanes = unary_union([_lane_polygon(l) for l in (*_lanes_of(net, inc), *_lanes_of(net, out))])
+    lanes = shapely.union_all([_lane_polygon(l) for l in (*_lanes_of(net, inc), *_lanes_of(net, out))],
+                        grid_size=UNION_GRID_M)
     return _largest_polygon(median.difference(lanes))
 
 
@@ -566,7 +568,7 @@ def _junction_polygon(net: NetXml, nodes: Sequence[str], inner_edges: Iterable[E
     if parts:
         for edge in inner_edges:
             parts.extend(_lane_polygon(l) for l in _lanes_of(net, edge))
-        union = unary_union(parts)
+        union = shapely.union_all(parts, grid_size=UNION_GRID_M)
         if isinstance(union, Polygon):
             return union
         return union.convex_hull  # type: ignore[return-value]
@@ -678,8 +680,11 @@ def read_junction(net_file: str | Path, junction_id: str | None = None) -> Junct
     car_surfaces = [_lane_polygon(net.lanes[i]) for i in sorted(used_internal)
                     if i in net.lanes and _is_car(net.lanes[i])]
     entrance_recs = [net.lanes[l.id] for a in approaches for l in a.entrance_lanes]
-    drivable = unary_union([polygon, *car_surfaces,
-                            *(_lane_polygon(l) for l in (*entrance_recs, *exit_car_lanes))])
+    # grid_size: lanes that share a border up to rounding can make GEOS drop a whole polygon
+    # from a plain union (seen with GEOS 3.14 on rotated layouts); snapping to 1 µm avoids it.
+    drivable = shapely.union_all([polygon, *car_surfaces,
+                            *(_lane_polygon(l) for l in (*entrance_recs, *exit_car_lanes))],
+                           grid_size=UNION_GRID_M)
 
     leg_lanes = [l for e in (*incoming, *outgoing) for l in _lanes_of(net, e)]
     return Junction(

@@ -1,0 +1,84 @@
+"""Candidate paths on the paper's six intersections and on real SUMO networks written by others."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from shapely.geometry import LineString, Point
+
+from crossroads.constants import PATH_SAMPLE_SPACING_M, V_LIMIT_MPS
+from crossroads.geometry import wrap_angle
+from crossroads.network import catalogue
+from crossroads.network.model import TASKS
+from crossroads.network.resolve import open_junction
+from crossroads.planning import plan_candidates
+from support import COLOGNE1_NET, SUMO_CROSS_NET, SUMO_RL_NET, sumo_example
+
+CATALOGUE = catalogue.list_intersections()
+REAL_NETS = {
+    "cologne1": COLOGNE1_NET,
+    "sumo-rl-2way": SUMO_RL_NET,
+    "sumo-game-cross": sumo_example(SUMO_CROSS_NET),
+}
+# How far a path's centre line may leave the drivable area [m]. SUMO rounds junction corners on
+# hand-drawn nets; the catalogue's own nets must contain the paths exactly (up to sampling).
+ROAD_TOLERANCE_M = {"catalogue": 0.05, "real": 0.75}
+
+
+def candidates_of(ref):
+    junction = open_junction(ref)
+    return junction, {task: plan_candidates(junction, task) for task in TASKS
+                      if junction.default_approach().connections_for(task)}
+
+
+@pytest.mark.parametrize("name", CATALOGUE)
+def test_counts_match_the_spec(name: str) -> None:
+    expected = catalogue.load_spec(name).expected_candidates
+    _, by_task = candidates_of(name)
+    assert {task: len(c) for task, c in by_task.items()} == dict(expected)
+
+
+@pytest.mark.parametrize(
+    ("ref", "kind"),
+    [(name, "catalogue") for name in CATALOGUE] + [(str(p), "real") for p in REAL_NETS.values()],
+    ids=CATALOGUE + list(REAL_NETS),
+)
+def test_paths_are_continuous_on_their_lanes_and_on_the_road(ref: str, kind: str) -> None:
+    junction, by_task = candidates_of(ref)
+    assert by_task, "the default approach allows at least one task"
+    road = junction.drivable_area.buffer(ROAD_TOLERANCE_M[kind])
+    for candidates in by_task.values():
+        for c in candidates:
+            entrance, exit_lane = junction.lanes[c.entrance_lane], junction.lanes[c.exit_lane]
+            gaps = np.hypot(*np.diff(c.points, axis=0).T)
+            assert gaps.max() <= PATH_SAMPLE_SPACING_M + 1e-9, c.id
+            # X0 and X1 on the entrance lane's centre line, X4 and X5 on the exit lane's
+            for point, lane in ((c.control_points[0], entrance), (c.control_points[1], entrance),
+                                (c.control_points[4], exit_lane), (c.control_points[5], exit_lane)):
+                assert LineString(lane.centerline).distance(Point(point)) < 0.06, c.id
+            np.testing.assert_allclose(c.points[0], c.control_points[0], atol=1e-9)
+            np.testing.assert_allclose(c.points[-1], c.control_points[5], atol=1e-9)
+            # headings at X1 and X4 equal the lanes' directions there
+            i1 = int(np.argmin(np.abs(c.s - c.s_stop_line)))
+            i4 = int(np.argmin(np.abs(c.s - c.s_exit)))
+            assert abs(wrap_angle(c.heading[i1] - entrance.end_heading)) < 0.02, c.id
+            assert abs(wrap_angle(c.heading[i4] - exit_lane.start_heading)) < 0.02, c.id
+            outside = [p for p in c.points if not road.contains(Point(p))]
+            assert not outside, f"{c.id} leaves the road at {outside[:3]}"
+
+
+@pytest.mark.parametrize("name", CATALOGUE)
+def test_speed_profiles_at_their_key_points(name: str) -> None:
+    _, by_task = candidates_of(name)
+    for c in by_task["left"]:
+        curve = c.segment == "curve"
+        cruise, inside = 0.8 * V_LIMIT_MPS, min(0.5 * V_LIMIT_MPS, 30 / 3.6)
+        assert np.allclose(c.v_pass[c.segment == "entrance"], cruise)
+        assert np.allclose(c.v_pass[curve], inside)
+        assert np.allclose(c.v_pass[c.segment == "exit"], cruise)
+        assert np.allclose(c.v_stop[curve], 0.0)
+        assert np.allclose(c.v_stop[c.segment == "exit"], cruise)
+        d = c.s_stop_line - c.s  # distance to the stop line on the entrance route
+        far, near = (c.segment == "entrance") & (d >= 30.0), (c.segment == "entrance") & (d < 30.0)
+        assert np.allclose(c.v_stop[far], cruise)
+        assert np.allclose(c.v_stop[near], cruise * np.sqrt(d[near] / 30.0))
