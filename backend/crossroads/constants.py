@@ -86,6 +86,10 @@ L_R: Final = 1.46  # [m] CG to rear axle
 MASS_KG: Final = 1520.0  # [kg]
 I_Z: Final = 2642.0  # [kg·m²]
 DT_S: Final = SIM_STEP_S  # [s] discrete time of f_ego / f_other
+# (choice) the ego's footprint, a mid-size car around the paper's 2.65 m wheelbase (L_f + L_r).
+# Used for its SUMO vehicle, the true-footprint collision check and the safety circles.
+EGO_LENGTH_M: Final = 4.8  # [m]
+EGO_WIDTH_M: Final = 2.0  # [m]
 
 # ξ ranges of the adversary, (low, high): x [m], y [m], v [m/s], φ [rad].
 XI_RANGES: Final[dict[str, tuple[float, float]]] = {

@@ -40,18 +40,13 @@ import libsumo
 import numpy as np
 from numpy.typing import NDArray
 
-from crossroads.constants import SIM_STEP_S
+from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, SIM_STEP_S
 from crossroads.geometry import heading_to_sumo_angle
 
 Kind = Literal["vehicle", "cyclist", "pedestrian"]
 KINDS: tuple[Kind, ...] = ("vehicle", "cyclist", "pedestrian")
 
-# The ego's footprint. (choice) 4.8 m × 2.0 m, a mid-size car consistent with L_f + L_r = 2.65 m
-# wheelbase of SPEC §5. Not in constants.py yet; the safety constraints (idc/constraints.py) must
-# use the same numbers.
 EGO_TYPE_ID = "ego"
-EGO_LENGTH_M = 4.8  # [m]
-EGO_WIDTH_M = 2.0  # [m]
 
 # SUMO speed-mode bits (sumo.dlr.de/docs/TraCI/Change_Vehicle_State.html#speed_mode_0xb3).
 SPEED_MODE_DEFAULT = 31  # all checks on
@@ -577,10 +572,13 @@ class SumoSession:
     @_sumo_errors
     def remove(self, participant_id: str) -> None:
         """Take a vehicle or a person out of the simulation now."""
+        # unsubscribe first: libsumo's next step fails on a subscription to a removed vehicle
         if participant_id in self._persons:
+            libsumo.person.unsubscribe(participant_id)
             libsumo.person.remove(participant_id)
             self._forget(participant_id, self._persons)
         else:
+            libsumo.vehicle.unsubscribe(participant_id)
             libsumo.vehicle.remove(participant_id)
             self._forget(participant_id, self._vehicles)
         self._snapshot = None

@@ -1,0 +1,96 @@
+"""One episode: a controller drives the ego in a world until an outcome, with an optional trace.
+
+The outcome is one of passed, collision, red_light, off_road, timeout (judged by the world on the
+true footprints). Travel time is measured from the ego's front bumper crossing the stop line to
+the step it counts as having left the intersection onto its target road (SPEC §8).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from crossroads.evaluation.trace import TraceRecorder
+from crossroads.idc.controller import Controller
+from crossroads.sim.world import Observation, Outcome, World
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    """What an episode came to; JSON-ready through :meth:`to_json`."""
+
+    seed: int
+    outcome: str  # passed | collision | red_light | off_road | timeout
+    steps: int
+    time_s: float  # [s] of ego time
+    travel_time_s: float | None  # [s] stop line → exit; only for passed episodes
+    min_distance_m: float  # [m] closest centre distance to any other participant
+    detail: str = ""
+    collided_with: str | None = None  # vehicle | cyclist | pedestrian
+    events: list[dict[str, Any]] = field(default_factory=list)  # mode switches, path switches, ...
+
+    @property
+    def passed(self) -> bool:
+        return self.outcome == "passed"
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def _closest_distance(observation: Observation) -> float:
+    snap = observation.participants
+    if len(snap) == 0:
+        return float("inf")
+    return float(np.min(np.hypot(snap.x - observation.ego[0], snap.y - observation.ego[1])))
+
+
+def run_episode(
+    world: World,
+    controller: Controller,
+    seed: int,
+    *,
+    recorder: TraceRecorder | None = None,
+) -> EpisodeResult:
+    """Reset ``world`` with ``seed`` and let ``controller`` drive until an outcome."""
+    observation = world.reset(seed)
+    controller.reset(world.candidates)
+    if recorder is not None:
+        recorder.start(world, seed)
+    events: list[dict[str, Any]] = []
+    min_distance = _closest_distance(observation)
+    last_mode = last_path = None
+    outcome: Outcome | None = None
+    steps = 0
+    while outcome is None:
+        decision = controller.decide(observation)
+        if decision.speed_mode != last_mode:
+            events.append({"t": round(observation.time_s, 2), "event": "speed_mode",
+                           "value": decision.speed_mode})
+            last_mode = decision.speed_mode
+        if decision.path_index != last_path:
+            events.append({"t": round(observation.time_s, 2), "event": "path",
+                           "value": int(decision.path_index)})
+            last_path = decision.path_index
+        if recorder is not None:
+            recorder.record(observation, decision)
+        observation, outcome = world.step(decision.action)
+        steps += 1
+        min_distance = min(min_distance, _closest_distance(observation))
+    if recorder is not None:
+        recorder.finish(observation, outcome)
+    crossed = world.stop_line_crossed_s
+    travel = outcome.time_s - crossed if outcome.kind == "passed" and crossed is not None else None
+    events.append({"t": round(outcome.time_s, 2), "event": "outcome", "value": outcome.kind})
+    return EpisodeResult(
+        seed=seed,
+        outcome=outcome.kind,
+        steps=steps,
+        time_s=round(outcome.time_s, 3),
+        travel_time_s=None if travel is None else round(travel, 3),
+        min_distance_m=round(min_distance, 3),
+        detail=outcome.detail,
+        collided_with=outcome.other_kind,
+        events=events,
+    )

@@ -1,0 +1,129 @@
+"""Safety and road constraints g(s) ≤ 0 and the exterior penalty φ (SPEC §4, paper Sec. IV-C).
+
+Circles **(choice, documented)**: a body of length L and width W centred at (x, y) with heading φ is
+covered by two circles centred at ±L/4 along φ, each of radius r₂ = √((L/4)² + (W/2)²), the
+half-diagonal of its half (so the two circles contain the whole rectangle: disjoint circles imply
+disjoint bodies). The ego (EGO_LENGTH_M × EGO_WIDTH_M) and vehicles and cyclists (their observed
+L, W) use two circles; pedestrians one circle at the centre of radius r₁ = √((L/2)² + (W/2)²).
+
+Safety: for every ego circle and every circle of every participant slot,
+``g = r_ego + r_other + safety_margin_m − ‖c_ego − c_other‖`` (g ≤ 0 safe). Order along the last
+axis: slot by slot (8 vehicles, 4 cyclists, 4 pedestrians as in the state), within a slot its
+circles (rear, front), within a circle the ego circles (rear, front): 8·2·2 + 4·2·2 + 4·1·2 = 56.
+
+Road **(choice)**: the intersection's road edges are not part of the state, so the road constraint
+keeps each ego circle centre within ``lateral_bound_m`` of the reference path, measured
+perpendicular to the reference heading through the reference point:
+``g = ±(lateral offset) − lateral_bound_m`` → 4 values (rear +, rear −, front +, front −). The
+default bound is a lane's half width less half the ego's width plus a little play
+(see ROAD_LATERAL_BOUND_M).
+
+Penalty, exactly as the paper: φ(g) = Σ min{0, −g}² — zero while g ≤ 0, (g)² once violated.
+Numpy or torch, batched over leading dimensions, differentiable in torch.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from crossroads.arrays import as_backend, ops
+from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M
+from crossroads.idc.state import (
+    DPHI,
+    DY,
+    KIND_OF_SLOT,
+    O_L,
+    O_PHI,
+    O_PX,
+    O_PY,
+    O_W,
+    PHI,
+    PX,
+    PY,
+    others_block,
+)
+
+SAFETY_MARGIN_M = 0.5  # [m] (choice) added to the sum of the radii
+EGO_CIRCLE_OFFSET_M = EGO_LENGTH_M / 4.0  # [m] ego circle centres at ± this along the heading
+EGO_RADIUS_M = math.hypot(EGO_LENGTH_M / 4.0, EGO_WIDTH_M / 2.0)  # [m]
+LANE_WIDTH_M = 3.5  # [m] (choice) nominal lane width for the road constraint
+ROAD_LATERAL_BOUND_M = LANE_WIDTH_M / 2.0  # [m] (choice) |lateral offset| of each ego circle centre
+_EPS = 1e-12  # inside the square root, so the distance is differentiable at 0
+
+TWO_CIRCLE_SLOTS = tuple(i for i, k in enumerate(KIND_OF_SLOT) if k != "pedestrian")
+ONE_CIRCLE_SLOTS = tuple(i for i, k in enumerate(KIND_OF_SLOT) if k == "pedestrian")
+assert TWO_CIRCLE_SLOTS == tuple(range(len(TWO_CIRCLE_SLOTS))), "two-circle kinds come first"
+N_SAFETY = sum(2 * (2 if k != "pedestrian" else 1) for k in KIND_OF_SLOT)  # 56
+N_ROAD = 4
+
+
+def ego_circles(state: Any) -> tuple[Any, Any, float]:
+    """Centres of the ego's circles: x, y of shape [..., 2] (rear, front), and their radius."""
+    xp = ops(state)
+    px, py, phi = state[..., PX], state[..., PY], state[..., PHI]
+    ox, oy = EGO_CIRCLE_OFFSET_M * xp.cos(phi), EGO_CIRCLE_OFFSET_M * xp.sin(phi)
+    return xp.stack([px - ox, px + ox], axis=-1), xp.stack([py - oy, py + oy], axis=-1), EGO_RADIUS_M
+
+
+def safety_constraints(state: Any, safety_margin_m: float = SAFETY_MARGIN_M) -> Any:
+    """g[..., 56] between the ego's circles and every participant's circles (module docstring)."""
+    xp = ops(state)
+    state = xp.asarray(state)
+    ex, ey, er = ego_circles(state)  # [..., 2]
+    o = others_block(state)  # [..., 16, 6]
+    ox, oy, ophi = o[..., O_PX], o[..., O_PY], o[..., O_PHI]
+    length, width = o[..., O_L], o[..., O_W]
+    off = length / 4.0
+    r2 = xp.sqrt(off * off + width * width / 4.0)
+    r1 = xp.sqrt(length * length / 4.0 + width * width / 4.0)
+    cx, sx = off * xp.cos(ophi), off * xp.sin(ophi)
+    n2 = len(TWO_CIRCLE_SLOTS)
+    # two-circle participants (the leading slots): centres [..., n2, 2], radii [..., n2, 1]
+    two_x = xp.stack([ox - cx, ox + cx], axis=-1)[..., :n2, :]
+    two_y = xp.stack([oy - sx, oy + sx], axis=-1)[..., :n2, :]
+    # one-circle participants (the trailing slots): [..., n1, 1]
+    one_x, one_y = ox[..., n2:, None], oy[..., n2:, None]
+
+    def gap(cxs: Any, cys: Any, rs: Any) -> Any:
+        """[..., slots, circles, 2 ego circles] → flattened [..., slots·circles·2]."""
+        dx = cxs[..., :, :, None] - ex[..., None, None, :]
+        dy = cys[..., :, :, None] - ey[..., None, None, :]
+        g = rs[..., :, :, None] + er + safety_margin_m - xp.sqrt(dx * dx + dy * dy + _EPS)
+        return g.reshape(tuple(g.shape[:-3]) + (-1,))
+
+    return xp.concat([gap(two_x, two_y, r2[..., :n2, None]), gap(one_x, one_y, r1[..., n2:, None])], axis=-1)
+
+
+def road_constraints(
+    state: Any, ref_x: Any = None, ref_y: Any = None, ref_heading: Any = None,
+    lateral_bound_m: float = ROAD_LATERAL_BOUND_M,
+) -> Any:
+    """g[..., 4]: lateral offset of each ego circle centre from the reference, against a bound.
+
+    With ``ref_x, ref_y, ref_heading`` the offsets are measured from that reference point and
+    heading; without them they come from the state's own x_track (Δy and Δφ): the circle centres
+    lie at Δy ± (L/4)·sin Δφ from the reference line — the same numbers when x_track was built
+    against that reference.
+    """
+    xp = ops(state, ref_x, ref_y, ref_heading)
+    state = xp.asarray(state)
+    if ref_x is None:
+        dy, dphi = state[..., DY], state[..., DPHI]
+        shift = EGO_CIRCLE_OFFSET_M * xp.sin(dphi)
+        lat = xp.stack([dy - shift, dy + shift], axis=-1)
+    else:
+        rx, ry, rh = (as_backend(r, state) for r in (ref_x, ref_y, ref_heading))
+        ex, ey, _ = ego_circles(state)
+        c, s = xp.cos(rh)[..., None], xp.sin(rh)[..., None]
+        lat = c * (ey - ry[..., None]) - s * (ex - rx[..., None])
+    return xp.stack([lat[..., 0] - lateral_bound_m, -lat[..., 0] - lateral_bound_m,
+                     lat[..., 1] - lateral_bound_m, -lat[..., 1] - lateral_bound_m], axis=-1)
+
+
+def penalty(g: Any) -> Any:
+    """φ = Σ over the last axis of min{0, −g}² (exterior point method): > 0 only where g > 0."""
+    xp = ops(g)
+    g = xp.asarray(g)
+    m = xp.minimum(-g, xp.zeros_like(g))
+    return xp.sum(m * m, axis=-1)

@@ -1,0 +1,429 @@
+"""The 108-dimensional state s = [x_ego, x_track, x_other] (SPEC §4, paper Sec. IV-C), in one place.
+
+Layout (indices into the last axis)::
+
+    0:8     x_ego   = [p_x, p_y, v_x, v_y, φ, ω, δ, a]            world frame, as f_ego
+    8:12    x_track = [Δx, Δy, Δv, Δφ]                            see tracking_error
+    12:60   8 vehicles   × [p_x, p_y, v, φ, L, W]                  world frame, as f_other
+    60:84   4 cyclists   × [p_x, p_y, v, φ, L, W]
+    84:108  4 pedestrians × [p_x, p_y, v, φ, L, W]
+
+Other participants are stored in the WORLD frame like the ego, so f_other and the safety
+constraints apply to the state directly; :func:`network_input` makes everything relative for the
+networks. In each kind's block the participants are sorted by distance to the ego, closest first;
+empty slots hold virtual participants (:func:`pad_participant`).
+
+x_track **(choice)**: the reference point is the nearest point of the candidate path (the foot of
+the perpendicular on its nearest segment, heading and speed interpolated along that segment).
+Δx and Δy are the ego's position error expressed in the reference's frame (longitudinal along
+the path heading, lateral positive to the left), the paper's "longitudinal / lateral distance
+error": Δx² + Δy² is the squared distance to the path whatever the frame, so the utility is
+unchanged, while the errors do not depend on how the intersection is oriented. Δv = v_x − v_ref
+(v_ref from the pass or stop speed profile, the only thing the speed mode changes, SPEC §7) and
+Δφ = φ − φ_ref wrapped into [-π, π).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from crossroads.arrays import as_backend, ops
+from crossroads.constants import (
+    ACCEL_MIN,
+    EGO_LENGTH_M,
+    EGO_STATE_DIM,
+    EGO_WIDTH_M,
+    N_CYCLISTS_OBSERVED,
+    N_PEDESTRIANS_OBSERVED,
+    N_VEHICLES_OBSERVED,
+    OTHER_STATE_DIM,
+    STATE_DIM,
+    STEER_MAX,
+    TRACK_STATE_DIM,
+)
+from crossroads.geometry import FloatArray
+from crossroads.planning.routes import CandidatePath
+
+# --- layout -----------------------------------------------------------------------------------------
+EGO = slice(0, EGO_STATE_DIM)
+TRACK = slice(EGO_STATE_DIM, EGO_STATE_DIM + TRACK_STATE_DIM)
+OTHERS = slice(EGO_STATE_DIM + TRACK_STATE_DIM, STATE_DIM)
+KINDS: tuple[str, ...] = ("vehicle", "cyclist", "pedestrian")
+SLOTS: dict[str, int] = {
+    "vehicle": N_VEHICLES_OBSERVED, "cyclist": N_CYCLISTS_OBSERVED, "pedestrian": N_PEDESTRIANS_OBSERVED,
+}
+N_OTHERS = sum(SLOTS.values())  # 16
+# rows of the (16, 6) block of each kind
+KIND_ROWS: dict[str, slice] = {}
+_row = 0
+for _kind in KINDS:
+    KIND_ROWS[_kind] = slice(_row, _row + SLOTS[_kind])
+    _row += SLOTS[_kind]
+del _row, _kind
+# state indices of each kind's block
+VEHICLES = slice(OTHERS.start, OTHERS.start + OTHER_STATE_DIM * SLOTS["vehicle"])
+CYCLISTS = slice(VEHICLES.stop, VEHICLES.stop + OTHER_STATE_DIM * SLOTS["cyclist"])
+PEDESTRIANS = slice(CYCLISTS.stop, STATE_DIM)
+KIND_OF_SLOT: tuple[str, ...] = tuple(k for k in KINDS for _ in range(SLOTS[k]))  # 16 entries
+
+# named indices
+PX, PY, VX, VY, PHI, OMEGA, DELTA, ACC = range(EGO_STATE_DIM)
+DX, DY, DV, DPHI = range(TRACK.start, TRACK.stop)
+O_PX, O_PY, O_V, O_PHI, O_L, O_W = range(OTHER_STATE_DIM)
+
+assert OTHERS.stop - OTHERS.start == OTHER_STATE_DIM * N_OTHERS == STATE_DIM - 12
+
+# --- padding ------------------------------------------------------------------------------------------
+PAD_DISTANCE_M = 100.0
+"""[m] (choice) distance of the virtual participants that fill empty slots.
+
+A pad stands PAD_DISTANCE_M behind the ego (opposite to its heading), facing away from it, speed 0,
+with the ego's size. No sensor sees that far (80 m at most), so a pad is never confused with a real
+participant; and over a prediction horizon of T = 25 steps (2.5 s) it cannot come within any
+safety threshold: the adversary's ξ moves it at most 25·0.8·√2 ≈ 28 m plus ≈ 7 m from the speed
+ξ_v accumulates, the ego drives at most ≈ 40 m, and thresholds are a few metres — so its safety
+constraints are far from binding and its penalty is exactly 0.
+"""
+
+
+def _wrap(angle: float) -> float:
+    """A scalar angle wrapped into [-π, π) (same formula as the array versions)."""
+    return float((angle + math.pi) % (2.0 * math.pi) - math.pi)
+
+
+def pad_participant(ego: ArrayLike) -> FloatArray:
+    """The virtual participant ``[p_x, p_y, 0, φ + π, L_ego, W_ego]`` for the ego state ``ego`` (8,)."""
+    e = np.asarray(ego, dtype=np.float64)
+    phi = float(e[PHI]) if e.shape[-1] > PHI else 0.0
+    c, s = math.cos(phi), math.sin(phi)
+    away = _wrap(phi + math.pi)
+    return np.array([e[PX] - PAD_DISTANCE_M * c, e[PY] - PAD_DISTANCE_M * s, 0.0, away, EGO_LENGTH_M, EGO_WIDTH_M])
+
+
+def select_others(
+    ego_xy: ArrayLike, observations: ArrayLike, kinds: ArrayLike, ego_heading: float | None = None,
+) -> FloatArray:
+    """x_other as a (16, 6) block: the closest 8 vehicles, 4 cyclists, 4 pedestrians, padded.
+
+    ``ego_xy`` is the ego's (x, y), or its whole state (8,) (then its heading places the pads);
+    ``observations`` (n, 6) world-frame rows ``[p_x, p_y, v, φ, L, W]``, ``kinds`` (n,). Within each
+    kind, rows are sorted by distance to the ego (closest first, ties keep the input order) and the
+    empty slots are filled with :func:`pad_participant`. Kinds other than the three are ignored.
+    """
+    e = np.asarray(ego_xy, dtype=np.float64)
+    heading = float(e[PHI]) if (ego_heading is None and e.shape[-1] > PHI) else float(ego_heading or 0.0)
+    ego = np.zeros(EGO_STATE_DIM)
+    ego[PX], ego[PY], ego[PHI] = e[0], e[1], heading
+    out = np.tile(pad_participant(ego), (N_OTHERS, 1))
+    obs = np.asarray(observations, dtype=np.float64).reshape(-1, OTHER_STATE_DIM)
+    if len(obs) == 0:
+        return out
+    kinds = np.asarray(kinds)
+    d2 = (obs[:, 0] - e[0]) ** 2 + (obs[:, 1] - e[1]) ** 2
+    for kind in KINDS:
+        idx = np.flatnonzero(kinds == kind)
+        if len(idx) == 0:
+            continue
+        chosen = idx[np.argsort(d2[idx], kind="stable")][: SLOTS[kind]]
+        rows = KIND_ROWS[kind]
+        out[rows.start: rows.start + len(chosen)] = obs[chosen]
+    return out
+
+
+def others_block(state: Any) -> Any:
+    """View of x_other as ``[..., 16, 6]`` (numpy or torch)."""
+    x = state[..., OTHERS]
+    return x.reshape(tuple(x.shape[:-1]) + (N_OTHERS, OTHER_STATE_DIM))
+
+
+# --- tracking error -----------------------------------------------------------------------------------
+
+
+def tracking_error(ego: Any, ref_x: Any, ref_y: Any, ref_heading: Any, ref_v: Any) -> Any:
+    """x_track = [Δx, Δy, Δv, Δφ] of ``ego[..., 8]`` against a reference point (module docstring).
+
+    Δx, Δy: the position error p − p_ref in the reference frame (longitudinal, lateral-left);
+    Δv = v_x − v_ref; Δφ = φ − φ_ref wrapped. Numpy or torch (differentiable in the ego state).
+    """
+    xp = ops(ego, ref_x, ref_y, ref_heading, ref_v)
+    ego = xp.asarray(ego)
+    rx, ry, rh, rv = (as_backend(r, ego) for r in (ref_x, ref_y, ref_heading, ref_v))
+    dx, dy = ego[..., PX] - rx, ego[..., PY] - ry
+    c, s = xp.cos(rh), xp.sin(rh)
+    return xp.stack([c * dx + s * dy, -s * dx + c * dy, ego[..., VX] - rv, xp.wrap(ego[..., PHI] - rh)], axis=-1)
+
+
+class Reference(NamedTuple):
+    """The reference point of a path for an ego position."""
+
+    index: Any  # segment index i: the foot lies on points[i] → points[i + 1]
+    x: Any  # [m]
+    y: Any  # [m]
+    heading: Any  # [rad]
+    v: Any  # [m/s]
+
+
+HINT_BACK = 20  # (choice) points searched behind the hint (10 m at 0.5 m spacing)
+HINT_AHEAD = 80  # (choice) points searched ahead of the hint (40 m)
+
+
+def reference_point(
+    path_points: ArrayLike, path_heading: ArrayLike, path_speed: ArrayLike, x: float, y: float,
+    hint: int | None = None,
+) -> Reference:
+    """Nearest point of a path to (x, y): ``(index, ref_x, ref_y, ref_heading, ref_v)``.
+
+    The foot of the perpendicular on the nearest segment (clamped to the segment), with heading
+    and speed interpolated along it. With ``hint`` (the index of the previous step) only the
+    segments from ``hint − 20`` to ``hint + 80`` are searched, unless the best one is at the edge of
+    that window (then the whole path is searched).
+    """
+    pts = np.asarray(path_points, dtype=np.float64)
+    head = np.asarray(path_heading, dtype=np.float64)
+    speed = np.asarray(path_speed, dtype=np.float64)
+    n = len(pts)
+    if n == 1:
+        return Reference(0, float(pts[0, 0]), float(pts[0, 1]), float(head[0]), float(speed[0]))
+    lo, hi = 0, n - 1  # segment range [lo, hi)
+    if hint is not None:
+        lo, hi = max(0, int(hint) - HINT_BACK), min(n - 1, int(hint) + HINT_AHEAD)
+        if hi <= lo:
+            lo, hi = 0, n - 1
+    while True:
+        a, b = pts[lo:hi], pts[lo + 1: hi + 1]
+        ab = b - a
+        len2 = np.einsum("ij,ij->i", ab, ab)
+        t = np.clip(((x - a[:, 0]) * ab[:, 0] + (y - a[:, 1]) * ab[:, 1]) / np.where(len2 > 0, len2, 1.0), 0.0, 1.0)
+        fx, fy = a[:, 0] + t * ab[:, 0], a[:, 1] + t * ab[:, 1]
+        k = int(np.argmin((x - fx) ** 2 + (y - fy) ** 2))
+        at_edge = (k == 0 and lo > 0) or (k == hi - lo - 1 and hi < n - 1)
+        if not at_edge or (lo == 0 and hi == n - 1):
+            break
+        lo, hi = 0, n - 1
+    i, w = lo + k, float(t[k])
+    h = _wrap(head[i] + w * _wrap(head[i + 1] - head[i]))
+    v = speed[i] + w * (speed[i + 1] - speed[i])
+    return Reference(i, float(fx[k]), float(fy[k]), float(h), float(v))
+
+
+# --- batched references in torch (training) --------------------------------------------------------
+
+
+class PathTensors(NamedTuple):
+    """P candidate paths as tensors, padded to a common length N by repeating the last point."""
+
+    points: Any  # (P, N, 2)
+    heading: Any  # (P, N)
+    v_pass: Any  # (P, N)
+    v_stop: Any  # (P, N)
+
+
+def path_tensors(candidates: Sequence[CandidatePath], dtype: Any = None, device: Any = None) -> PathTensors:
+    """Stack candidate paths into :class:`PathTensors` (torch; default dtype float32)."""
+    import torch
+
+    dtype = torch.float32 if dtype is None else dtype
+    n = max(len(c.points) for c in candidates)
+
+    def pad(a: np.ndarray) -> np.ndarray:
+        return np.concatenate([a, np.repeat(a[-1:], n - len(a), axis=0)], axis=0)
+
+    def t(arrs: list[np.ndarray]) -> Any:
+        return torch.as_tensor(np.stack([pad(np.asarray(a, np.float64)) for a in arrs]), dtype=dtype, device=device)
+
+    return PathTensors(t([c.points for c in candidates]), t([c.heading for c in candidates]),
+                       t([c.v_pass for c in candidates]), t([c.v_stop for c in candidates]))
+
+
+def reference_points_torch(
+    paths: PathTensors, ego_xy: Any, path_index: Any = None, stop: Any = False,
+) -> Reference:
+    """Reference points for a batch of ego positions ``ego_xy`` (B, 2), in torch.
+
+    Sample b uses path ``path_index[b]`` (a (B,) long tensor); with ``path_index=None`` one path
+    (P = 1) serves all samples, or P = B pairs path b with sample b. ``stop`` (bool or (B,) bool
+    tensor) picks the stop-mode speed profile instead of the pass one. Same geometry as
+    :func:`reference_point` without a hint (all segments searched). The reference is data: it is
+    computed without gradient (the index is not differentiable anyway); feed it to
+    :func:`tracking_error` with the differentiable ego state.
+    """
+    import torch
+
+    with torch.no_grad():
+        xy = ego_xy.detach()
+        b = xy.shape[0]
+        p = paths.points.shape[0]
+        if path_index is None:
+            if p not in (1, b):
+                raise ValueError(f"{p} paths for {b} samples: give path_index")
+            path_index = torch.zeros(b, dtype=torch.long, device=xy.device) if p == 1 else torch.arange(b, device=xy.device)
+        pts = paths.points.to(xy.dtype)[path_index]  # (B, N, 2)
+        head = paths.heading.to(xy.dtype)[path_index]
+        stop_t = torch.as_tensor(stop, device=xy.device, dtype=torch.bool).expand(b)
+        speed = torch.where(stop_t[:, None], paths.v_stop.to(xy.dtype)[path_index], paths.v_pass.to(xy.dtype)[path_index])
+        n = pts.shape[1]
+        if n == 1:
+            zero = torch.zeros(b, dtype=torch.long, device=xy.device)
+            return Reference(zero, pts[:, 0, 0], pts[:, 0, 1], head[:, 0], speed[:, 0])
+        a, ab = pts[:, :-1], pts[:, 1:] - pts[:, :-1]
+        len2 = (ab * ab).sum(-1)
+        rel = xy[:, None, :] - a
+        t = torch.clamp((rel * ab).sum(-1) / torch.where(len2 > 0, len2, torch.ones_like(len2)), 0.0, 1.0)
+        foot = a + t[..., None] * ab
+        i = torch.argmin(((xy[:, None, :] - foot) ** 2).sum(-1), dim=1)  # (B,)
+        rows = torch.arange(b, device=xy.device)
+        w = t[rows, i]
+        h0, h1 = head[rows, i], head[rows, i + 1]
+        dh = torch.remainder(h1 - h0 + math.pi, 2.0 * math.pi) - math.pi
+        h = torch.remainder(h0 + w * dh + math.pi, 2.0 * math.pi) - math.pi
+        v = speed[rows, i] + w * (speed[rows, i + 1] - speed[rows, i])
+        return Reference(i, foot[rows, i, 0], foot[rows, i, 1], h, v)
+
+
+# --- building states for every candidate (online, numpy) ----------------------------------------------
+
+
+class _Stacked(NamedTuple):
+    candidates: tuple[CandidatePath, ...]
+    ax: np.ndarray  # (C, M) segment starts (padding: the last point)
+    ay: np.ndarray
+    abx: np.ndarray  # (C, M) segment vectors (0 on padding)
+    aby: np.ndarray
+    inv_len2: np.ndarray  # (C, M) 1/|ab|² (0 on padding → t = 0)
+    pack: dict[str, np.ndarray]  # mode → (C·M, 8): ax, ay, abx, aby, h0, dh, v0, dv per segment
+
+
+_CACHE: dict[tuple[int, ...], _Stacked] = {}
+_CACHE_SIZE = 64
+
+
+def _stacked(candidates: Sequence[CandidatePath]) -> _Stacked:
+    key = tuple(id(c) for c in candidates)
+    hit = _CACHE.get(key)
+    if hit is not None and all(a is b for a, b in zip(hit.candidates, candidates)):
+        return hit
+    m = max(max(len(c.points) - 1, 1) for c in candidates)
+
+    def seg(a: np.ndarray, start: bool) -> np.ndarray:
+        """Per-segment start values (or changes along it) of a per-point array, padded to m."""
+        a = np.asarray(a, np.float64)
+        if len(a) == 1:
+            a = np.concatenate([a, a])
+        s = a[:-1] if start else a[1:] - a[:-1]
+        fill = a[-1] if start else np.zeros_like(a[-1])
+        return np.concatenate([s, np.repeat(fill[None], m - len(s), axis=0)]) if len(s) < m else s
+
+    pts = np.stack([seg(c.points, True) for c in candidates])  # (C, M, 2)
+    ab = np.stack([seg(c.points, False) for c in candidates])
+    len2 = (ab**2).sum(-1)
+    head = [np.asarray(c.heading, np.float64) for c in candidates]
+    h0 = np.stack([seg(h, True) for h in head])
+    dh = np.stack([np.mod(seg(h, False) + math.pi, 2.0 * math.pi) - math.pi for h in head])
+    pack = {}
+    for mode in ("pass", "stop"):
+        v = [np.asarray(c.v_pass if mode == "pass" else c.v_stop, np.float64) for c in candidates]
+        v0, dv = np.stack([seg(a, True) for a in v]), np.stack([seg(a, False) for a in v])
+        pack[mode] = np.stack([pts[..., 0], pts[..., 1], ab[..., 0], ab[..., 1], h0, dh, v0, dv],
+                              axis=-1).reshape(-1, 8)
+    stacked = _Stacked(
+        tuple(candidates), pts[..., 0].copy(), pts[..., 1].copy(), ab[..., 0].copy(), ab[..., 1].copy(),
+        np.where(len2 > 0, 1.0 / np.where(len2 > 0, len2, 1.0), 0.0), pack,
+    )
+    if len(_CACHE) >= _CACHE_SIZE:
+        _CACHE.pop(next(iter(_CACHE)))
+    _CACHE[key] = stacked
+    return stacked
+
+
+def references(candidates: Sequence[CandidatePath], x: float, y: float, mode: str = "pass") -> Reference:
+    """Reference point of every candidate at once: each field an array of shape (n_candidates,).
+
+    Same geometry as :func:`reference_point` without a hint (all segments searched).
+    """
+    if mode not in ("pass", "stop"):
+        raise ValueError(f"unknown speed mode {mode!r}; expected 'pass' or 'stop'")
+    st = _stacked(candidates)
+    relx, rely = x - st.ax, y - st.ay
+    t = (relx * st.abx + rely * st.aby) * st.inv_len2
+    np.maximum(t, 0.0, out=t)
+    np.minimum(t, 1.0, out=t)
+    relx -= t * st.abx
+    rely -= t * st.aby
+    relx *= relx
+    rely *= rely
+    relx += rely
+    i = relx.argmin(axis=1)
+    flat = i + np.arange(len(i)) * relx.shape[1]
+    w = t.ravel()[flat]
+    ax, ay, abx, aby, h0, dh, v0, dv = st.pack[mode][flat].T
+    h = np.mod(h0 + w * dh + math.pi, 2.0 * math.pi) - math.pi
+    return Reference(i, ax + w * abx, ay + w * aby, h, v0 + w * dv)
+
+
+def build_states(
+    ego: ArrayLike, others16: ArrayLike, candidates: Sequence[CandidatePath], mode: str,
+) -> FloatArray:
+    """One state per candidate path, ``(n_candidates, 108)``: shared x_ego and x_other, own x_track.
+
+    ``mode`` ("pass" | "stop") picks the speed profile of Δv. Vectorised over the candidates' points
+    (their segment arrays are stacked once and cached per tuple of candidates).
+    """
+    e = np.asarray(ego, dtype=np.float64)
+    px, py, vx, phi = e[PX].item(), e[PY].item(), e[VX].item(), e[PHI].item()
+    ref = references(candidates, px, py, mode)
+    n = len(ref.x)
+    dx, dy = px - ref.x, py - ref.y
+    c, s = np.cos(ref.heading), np.sin(ref.heading)
+    track = np.empty((n, TRACK_STATE_DIM))
+    track[:, 0] = c * dx + s * dy
+    track[:, 1] = c * dy - s * dx
+    track[:, 2] = vx - ref.v
+    track[:, 3] = np.mod(phi - ref.heading + math.pi, 2.0 * math.pi) - math.pi
+    others = np.asarray(others16, dtype=np.float64).reshape(1, -1)
+    return np.concatenate([np.broadcast_to(e, (n, EGO_STATE_DIM)), track,
+                           np.broadcast_to(others, (n, others.shape[1]))], axis=1)
+
+
+# --- network input ---------------------------------------------------------------------------------
+
+POSITION_SCALE_M = 20.0  # (choice) others' relative position [m] per unit
+SPEED_SCALE_MPS = 10.0  # (choice) speeds and Δv [m/s] per unit
+YAW_RATE_SCALE = 1.0  # (choice) ω [rad/s] per unit
+SIZE_SCALE_M = 5.0  # (choice) L, W [m] per unit
+TRACK_POSITION_SCALE_M = 2.0  # (choice) Δx, Δy [m] per unit
+ANGLE_SCALE = math.pi  # relative headings and Δφ [rad] per unit (wrapped angles → [-1, 1))
+
+
+def network_input(states: Any) -> Any:
+    """Normalised, pose-invariant network input ``[..., 108]`` from states ``[..., 108]`` (numpy/torch).
+
+    **(choice)** Everything is expressed relative to the ego so one policy fits every intersection
+    and approach: the ego's absolute position and heading are replaced by 0 (slots 0, 1, 4 kept
+    so the layout is the same); v_x, v_y are divided by 10 m/s, ω by 1 rad/s, δ by δ_max, a by
+    |a_min|; x_track is already path-relative (Δx, Δy / 2 m, Δv / 10 m/s, Δφ / π). Each other
+    participant becomes [x, y] = its position relative to the ego rotated into the ego frame
+    (x forward, y left) / 20 m, v / 10 m/s, its heading relative to the ego's wrapped / π, L and
+    W / 5 m. Pads (100 m behind) thus sit at (−5, 0), speed 0, relative heading −1.
+    """
+    xp = ops(states)
+    states = xp.asarray(states)
+    px, py, phi = states[..., PX], states[..., PY], states[..., PHI]
+    zero = xp.zeros_like(px)
+    ego = xp.stack([zero, zero, states[..., VX] / SPEED_SCALE_MPS, states[..., VY] / SPEED_SCALE_MPS, zero,
+                    states[..., OMEGA] / YAW_RATE_SCALE, states[..., DELTA] / STEER_MAX,
+                    states[..., ACC] / abs(ACCEL_MIN)], axis=-1)
+    track = xp.stack([states[..., DX] / TRACK_POSITION_SCALE_M, states[..., DY] / TRACK_POSITION_SCALE_M,
+                      states[..., DV] / SPEED_SCALE_MPS, states[..., DPHI] / ANGLE_SCALE], axis=-1)
+    o = others_block(states)
+    c, s = xp.cos(phi)[..., None], xp.sin(phi)[..., None]
+    dx, dy = o[..., O_PX] - px[..., None], o[..., O_PY] - py[..., None]
+    rel = xp.stack([(c * dx + s * dy) / POSITION_SCALE_M, (c * dy - s * dx) / POSITION_SCALE_M,
+                    o[..., O_V] / SPEED_SCALE_MPS, xp.wrap(o[..., O_PHI] - phi[..., None]) / ANGLE_SCALE,
+                    o[..., O_L] / SIZE_SCALE_M, o[..., O_W] / SIZE_SCALE_M], axis=-1)
+    rel = rel.reshape(tuple(rel.shape[:-2]) + (N_OTHERS * OTHER_STATE_DIM,))
+    return xp.concat([ego, track, rel], axis=-1)

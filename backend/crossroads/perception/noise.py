@@ -1,0 +1,50 @@
+"""Perception noise (SPEC §3, paper Table "Noise parameters"): Gaussian, per participant type.
+
+Each observation row ``[p_x, p_y, v, φ, L, W]`` gets independent N(mean, std²) noise with the
+(mean, std) of ``constants.PERCEPTION_NOISE`` for its type. Afterwards **(choice)** lengths and
+widths are kept ≥ 0.1 m (a size cannot be negative, and the constraints need a positive radius),
+speeds ≥ 0 (a speed magnitude) and the heading is wrapped into [-π, π). The draws come only from
+the generator passed in, so the same generator state gives the same noise.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from crossroads.constants import PERCEPTION_NOISE
+from crossroads.geometry import FloatArray
+
+KINDS: tuple[str, ...] = ("vehicle", "cyclist", "pedestrian")
+FIELDS: tuple[str, ...] = ("p_x", "p_y", "v", "phi", "L", "W")
+MIN_SIZE_M = 0.1  # [m] (choice) smallest noisy length / width
+
+_MEAN = np.array([[PERCEPTION_NOISE[k][f][0] for f in FIELDS] for k in KINDS])  # (3, 6)
+_STD = np.array([[PERCEPTION_NOISE[k][f][1] for f in FIELDS] for k in KINDS])  # (3, 6)
+
+
+def kind_indices(kinds: ArrayLike) -> np.ndarray:
+    """Index into :data:`KINDS` of every kind; ``ValueError`` on an unknown one."""
+    kinds = np.asarray(kinds)
+    idx = np.full(kinds.shape, -1, dtype=np.int64)
+    for i, kind in enumerate(KINDS):
+        idx[kinds == kind] = i
+    if (idx < 0).any():
+        bad = sorted({str(k) for k in kinds[idx < 0]})
+        raise ValueError(f"unknown participant kind(s) {bad}; expected one of {KINDS}")
+    return idx
+
+
+def add_noise(observations: ArrayLike, kinds: ArrayLike, rng: np.random.Generator) -> FloatArray:
+    """Noisy copy of ``observations`` (n, 6) for participants of ``kinds`` (n,)."""
+    obs = np.asarray(observations, dtype=np.float64)
+    if obs.ndim != 2 or obs.shape[1] != len(FIELDS):
+        raise ValueError(f"expected (n, 6) observations, got shape {obs.shape}")
+    idx = kind_indices(kinds)
+    if idx.shape != (len(obs),):
+        raise ValueError(f"expected {len(obs)} kinds, got shape {idx.shape}")
+    noisy = obs + _MEAN[idx] + _STD[idx] * rng.standard_normal(obs.shape)
+    noisy[:, 2] = np.maximum(noisy[:, 2], 0.0)
+    noisy[:, 3] = np.mod(noisy[:, 3] + np.pi, 2.0 * np.pi) - np.pi
+    noisy[:, 4:6] = np.maximum(noisy[:, 4:6], MIN_SIZE_M)
+    return noisy

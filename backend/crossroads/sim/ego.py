@@ -1,0 +1,87 @@
+"""The ego's model f_ego (SPEC §5, paper Sec. IV-D): the semi-implicit dynamic bicycle of Ge et al.
+
+State ``[p_x, p_y, v_x, v_y, φ, ω, δ, a]`` (world frame position [m], body-frame longitudinal and
+lateral speed [m/s], heading [rad], yaw rate [rad/s], front wheel angle [rad], acceleration [m/s²]);
+action ``[Δδ, Δa]`` (steering rate [rad/s], jerk [m/s³]). Δt = 0.1 s.
+
+The update is the paper's equation, term by term::
+
+    p_x' = p_x + Δt (v_x cos φ − v_y sin φ)
+    p_y' = p_y + Δt (v_x sin φ + v_y cos φ)
+    v_x' = v_x + Δt (a + v_y ω)
+    v_y' = [m v_x v_y + Δt ((L_f k_f − L_r k_r) ω − k_f δ v_x − m v_x² ω)] / [m v_x − Δt (k_f + k_r)]
+    φ'   = φ + Δt ω
+    ω'   = [−I_z ω v_x − Δt ((L_f k_f − L_r k_r) v_y − L_f k_f δ v_x)] / [Δt (L_f² k_f + L_r² k_r) − I_z v_x]
+    δ'   = δ + Δt Δδ
+    a'   = a + Δt Δa
+
+with k_f = k_r < 0: for v_x ≥ 0 the first denominator is ≥ −Δt (k_f + k_r) > 0 and the second
+≤ Δt (L_f² k_f + L_r² k_r) < 0, so neither vanishes and the model stays finite at standstill.
+
+Limits (SPEC §4): the action is clipped to |Δδ| ≤ 0.4 rad/s, |Δa| ≤ 4.5 m/s³; δ' and a' of the next
+state to |δ| ≤ 0.4 rad and a ∈ [−3.0, 1.5] m/s². **(choice)** v_x' is clipped at 0: the car has no
+reverse gear, so braking (a < 0) at standstill must hold it, not drive it backwards; this also keeps
+v_x in the range where the denominators above are bounded away from zero.
+
+One definition serves numpy arrays and torch tensors (batched over leading dimensions); with
+tensors every operation is differentiable (the clips pass gradient inside their range).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from crossroads.arrays import as_backend, ops
+from crossroads.constants import (
+    ACCEL_MAX,
+    ACCEL_MIN,
+    DT_S,
+    I_Z,
+    JERK_MAX,
+    K_F,
+    K_R,
+    L_F,
+    L_R,
+    MASS_KG,
+    STEER_MAX,
+    STEER_RATE_MAX,
+)
+
+
+def clip_action(action: Any) -> Any:
+    """``[Δδ, Δa]`` clipped to |Δδ| ≤ 0.4 rad/s and |Δa| ≤ 4.5 m/s³ (same backend and shape)."""
+    xp = ops(action)
+    action = xp.asarray(action)
+    return xp.stack([xp.clip(action[..., 0], -STEER_RATE_MAX, STEER_RATE_MAX),
+                     xp.clip(action[..., 1], -JERK_MAX, JERK_MAX)], axis=-1)
+
+
+def ego_step(state: Any, action: Any, dt: float = DT_S) -> Any:
+    """One step of f_ego: ``state[..., 8]``, ``action[..., 2]`` → next ``state[..., 8]``.
+
+    The action is clipped first (see :func:`clip_action`); δ and a of the next state are clipped to
+    their ranges and v_x is kept ≥ 0 (module docstring). Numpy in, numpy out; tensor in, tensor out.
+    """
+    xp = ops(state, action)
+    state = xp.asarray(state)
+    action = as_backend(action, state)
+    u = clip_action(action)
+    px, py, vx, vy, phi, omega, delta, acc = (state[..., i] for i in range(8))
+    d_delta, d_acc = u[..., 0], u[..., 1]
+    cos_phi, sin_phi = xp.cos(phi), xp.sin(phi)
+    lk = L_F * K_F - L_R * K_R
+
+    px_next = px + dt * (vx * cos_phi - vy * sin_phi)
+    py_next = py + dt * (vx * sin_phi + vy * cos_phi)
+    vx_next = vx + dt * (acc + vy * omega)
+    vy_next = (MASS_KG * vx * vy + dt * (lk * omega - K_F * delta * vx - MASS_KG * vx * vx * omega)) / (
+        MASS_KG * vx - dt * (K_F + K_R)
+    )
+    phi_next = phi + dt * omega
+    omega_next = (-I_Z * omega * vx - dt * (lk * vy - L_F * K_F * delta * vx)) / (
+        dt * (L_F * L_F * K_F + L_R * L_R * K_R) - I_Z * vx
+    )
+    delta_next = xp.clip(delta + dt * d_delta, -STEER_MAX, STEER_MAX)
+    acc_next = xp.clip(acc + dt * d_acc, ACCEL_MIN, ACCEL_MAX)
+    vx_next = xp.maximum(vx_next, xp.zeros_like(vx_next))
+    return xp.stack([px_next, py_next, vx_next, vy_next, phi_next, omega_next, delta_next, acc_next], axis=-1)

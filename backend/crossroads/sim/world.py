@@ -1,0 +1,307 @@
+"""The driving world: SUMO traffic and signals around an ego car driven by f_ego.
+
+One :class:`World` per process runs any number of episodes one after another (libsumo restarts
+cleanly). Every random choice flows from the episode's seed: the traffic's departures, SUMO's
+drivers, the abnormal vehicles and the perception noise each get their own child of one
+``numpy.random.SeedSequence(seed)``, so the same seed gives the same episode, frame for frame.
+
+Each step: the controller's action moves the ego through f_ego (SPEC §5, 0.1 s); its pose and speed
+are mirrored into SUMO (SUMO's drivers and pedestrians react to it); SUMO advances one step; the
+outcome is judged on the true footprints; the ego perceives the others through its sensors with
+Gaussian noise (SPEC §3).
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import shapely
+from shapely.geometry import Polygon
+from shapely.ops import unary_union
+
+from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, SIM_STEP_S
+from crossroads.geometry import FloatArray, point_at, polyline_length
+from crossroads.network.junction import read_junction
+from crossroads.network.model import Approach, Junction, Lane
+from crossroads.perception.noise import add_noise
+from crossroads.perception.sensors import DEFAULT_SENSORS, covered
+from crossroads.planning import CandidatePath, plan_candidates
+from crossroads.sim.abnormal import AbnormalTraffic
+from crossroads.sim.config import WorldConfig
+from crossroads.sim.ego import clip_action, ego_step
+from crossroads.sim.footprint import overlapping, rectangle_corners
+from crossroads.sim.signals import Light, apply_start, live_light, read_program
+from crossroads.sim.sumo import Snapshot, SumoSession
+from crossroads.sim.traffic import write_routes
+
+EGO_ID = "ego"
+OutcomeKind = Literal["passed", "collision", "red_light", "off_road", "timeout"]
+OUTCOMES: tuple[OutcomeKind, ...] = ("passed", "collision", "red_light", "off_road", "timeout")
+
+OFF_ROAD_TOLERANCE_M = 0.5  # [m] a corner may overhang the drivable area this much (kerb, paint)
+SPAWN_CLEARANCE_M = 6.0  # [m] participants this close to the ego's start are removed at entry
+FRONT_CORRIDOR_HALF_WIDTH_M = 1.75  # [m] "in front of the ego": within half a lane of its axis
+FRONT_LOOKAHEAD_M = 30.0  # [m] how far ahead the congestion check looks for a front vehicle
+STOPPED_SPEED_MPS = 0.1  # [m/s] below this a vehicle counts as stopped
+ROUTE_MARGIN_S = 30.0  # [s] demand is drawn for warm-up + timeout + this margin
+
+
+@dataclass(frozen=True)
+class LightView:
+    """The signal the ego's approach sees."""
+
+    light: Light  # "green" | "yellow" | "red"
+    remaining_s: float  # [s] until it changes
+    state: str  # the whole tlLogic state string (every link), for drawing
+
+
+@dataclass(frozen=True)
+class Perceived:
+    """The participants the ego's sensors cover, with the noisy observation of each."""
+
+    rows: np.ndarray  # indices into the snapshot
+    kinds: np.ndarray  # "vehicle" | "cyclist" | "pedestrian"
+    observations: FloatArray  # (n, 6): [p_x, p_y, v, φ, L, W], world frame, noisy
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What a controller may look at after a step (the true snapshot is for the trace and judge)."""
+
+    time_s: float  # [s] since the ego entered
+    ego: FloatArray  # (8,) [p_x, p_y, v_x, v_y, φ, ω, δ, a]
+    light: LightView
+    distance_to_stop_line_m: float  # [m] of the ego's front bumper; negative once past it
+    front_vehicle_stopped_s: float  # [s] the vehicle ahead has been standing (0 if none/moving)
+    participants: Snapshot  # true state of everyone but the ego
+    abnormal_ids: frozenset[str]
+    perceived: Perceived
+    candidates: tuple[CandidatePath, ...]
+
+    @property
+    def past_stop_line(self) -> bool:
+        return self.distance_to_stop_line_m < 0.0
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """How an episode ended."""
+
+    kind: OutcomeKind
+    time_s: float  # [s] since the ego entered
+    detail: str = ""  # e.g. which participant was hit
+    other_kind: str | None = None  # collision: "vehicle" | "cyclist" | "pedestrian"
+
+
+class World:
+    """A scenario's world; :meth:`reset` starts an episode, :meth:`step` advances it by 0.1 s."""
+
+    def __init__(self, config: WorldConfig, *, session: SumoSession | None = None) -> None:
+        self.config = config
+        self.junction: Junction = read_junction(config.net_file, config.junction_id)
+        self.approach: Approach = (self.junction.approach(config.approach) if config.approach
+                                   else self.junction.default_approach())
+        self.candidates: tuple[CandidatePath, ...] = tuple(
+            plan_candidates(self.junction, config.task, approach=self.approach, rho=config.rho))
+        self.program = read_program(config.net_file, self.junction.tl_id)
+        self.start_lane: Lane = self.junction.lanes[
+            config.ego_start.entrance_lane or self.candidates[0].entrance_lane]
+        if self.start_lane.id not in {lane.id for lane in self.approach.entrance_lanes}:
+            raise ValueError(f"ego.entrance_lane {self.start_lane.id!r} is not an entrance lane of "
+                             f"approach {self.approach.id!r}")
+        self._link_index = self._signal_link()
+        self._stop_mid = self.approach.stop_line.mean(axis=0)
+        self._forward = np.array([math.cos(self.approach.heading_rad),
+                                  math.sin(self.approach.heading_rad)])
+        self._road = self.junction.drivable_area.buffer(OFF_ROAD_TOLERANCE_M)
+        shapely.prepare(self._road)
+        exit_edges = {self.junction.lanes[c.exit_lane].edge_id for c in self.candidates}
+        self._target_exit: Polygon = unary_union([
+            lane.polygon() for lane in self.junction.lanes.values() if lane.edge_id in exit_edges])
+        self._inside = self.junction.polygon
+        shapely.prepare(self._target_exit)
+        shapely.prepare(self._inside)
+        self.session = session or SumoSession()
+        self._work_dir = Path(tempfile.mkdtemp(prefix="crossroads-world-"))
+        self.episode_seed: int | None = None
+
+    # --- set-up ----------------------------------------------------------------------------
+
+    def _signal_link(self) -> int:
+        """The tl link index of the ego's movement: its start lane into the task's target."""
+        for c in self.approach.connections_for(self.config.task):
+            if c.from_lane == self.start_lane.id and c.tl_link_index is not None:
+                return c.tl_link_index
+        for c in self.approach.connections_for(self.config.task):
+            if c.tl_link_index is not None:
+                return c.tl_link_index
+        raise ValueError(f"no signalised {self.config.task} movement from {self.approach.id!r}")
+
+    def _start_pose(self) -> tuple[float, float, float]:
+        """Ego centre and heading: ``distance_to_stop_line_m`` of its front bumper before the line."""
+        lane = self.start_lane
+        back = self.config.ego_start.distance_to_stop_line_m + EGO_LENGTH_M / 2.0
+        s = max(0.0, polyline_length(lane.centerline) - back)
+        x, y = point_at(lane.centerline, s)
+        ahead = point_at(lane.centerline, min(s + 1.0, lane.length_m))
+        heading = math.atan2(ahead[1] - y, ahead[0] - x)
+        return float(x), float(y), heading
+
+    def reset(self, seed: int) -> Observation:
+        """Start a fresh episode: SUMO with its warmed-up traffic, then the ego at its start."""
+        cfg = self.config
+        self.episode_seed = seed
+        traffic_seq, sumo_seq, abnormal_seq, noise_seq = np.random.SeedSequence(seed).spawn(4)
+        routes = write_routes(
+            self.junction, cfg.demand, self._work_dir / "traffic.rou.xml",
+            seed=int(traffic_seq.generate_state(1)[0]),
+            duration_s=cfg.warmup_s + cfg.timeout_s + ROUTE_MARGIN_S)
+        self.session.close()
+        self.session.start(cfg.net_file, [routes], seed=int(sumo_seq.generate_state(1)[0] % 2**31),
+                           step_length_s=SIM_STEP_S)
+        self.abnormal = AbnormalTraffic(self.junction, self.approach, cfg.abnormal,
+                                        int(abnormal_seq.generate_state(1)[0]))
+        self.abnormal.apply_speed_limits(self.session)
+        self._noise_rng = np.random.default_rng(noise_seq)
+        for _ in range(int(round(cfg.warmup_s / SIM_STEP_S))):
+            self.session.step()
+            self.abnormal.update(self.session)
+        self.signal_offset_s = apply_start(self.session, self.program,
+                                           cfg.signal_start.phase_index, cfg.signal_start.elapsed_s)
+        x, y, heading = self._start_pose()
+        self._clear_spawn(x, y)
+        exit_edge = self.junction.lanes[self.candidates[0].exit_lane].edge_id
+        self.session.add_ego(EGO_ID, [self.approach.incoming_edge, exit_edge],
+                             depart_lane=self.start_lane.index)
+        speed = cfg.ego_start.speed_mps
+        self.ego = np.array([x, y, speed, 0.0, heading, 0.0, 0.0, 0.0])
+        self.session.move_ego(EGO_ID, x, y, heading, speed)
+        self.session.step()
+        self.time_s = 0.0
+        self._stopped_since: dict[str, float] = {}
+        self._stop_line_crossed_s: float | None = None
+        self._abnormal_ids = self.abnormal.update(self.session)
+        self.outcome: Outcome | None = None
+        return self._observe(self.session.snapshot())
+
+    def _clear_spawn(self, x: float, y: float) -> None:
+        """Remove whoever stands where the ego enters, so an episode never starts in a crash."""
+        snap = self.session.snapshot()
+        close = np.hypot(snap.x - x, snap.y - y) < SPAWN_CLEARANCE_M
+        for pid in snap.ids[close]:
+            self.session.remove(str(pid))
+        if close.any():
+            self.session.step()
+
+    # --- the loop --------------------------------------------------------------------------
+
+    def step(self, action: FloatArray) -> tuple[Observation, Outcome | None]:
+        """Apply ``action`` = [Δδ, Δa] for 0.1 s; returns the new observation and the outcome
+        (None while the episode goes on)."""
+        if self.outcome is not None:
+            raise RuntimeError("the episode has ended; call reset(seed) first")
+        previous_distance = self._distance_to_stop_line(self.ego)
+        self.ego = ego_step(self.ego, clip_action(np.asarray(action, dtype=np.float64)))
+        x, y, vx, _, heading = self.ego[:5]
+        self.session.move_ego(EGO_ID, float(x), float(y), float(heading), float(vx))
+        self.session.step()
+        self._abnormal_ids = self.abnormal.update(self.session)
+        self.time_s += SIM_STEP_S
+        snap = self.session.snapshot()
+        obs = self._observe(snap)
+        self.outcome = self._judge(snap, obs, previous_distance)
+        return obs, self.outcome
+
+    def _distance_to_stop_line(self, ego: FloatArray) -> float:
+        front = ego[:2] + EGO_LENGTH_M / 2.0 * np.array([math.cos(ego[4]), math.sin(ego[4])])
+        return float(np.dot(self._stop_mid - front, self._forward))
+
+    def _light(self) -> LightView:
+        at = live_light(self.session, self.program, self._link_index)
+        return LightView(at.light, at.remaining_s, self.session.tl_state(self.program.tl_id))
+
+    def _front_vehicle_stopped_s(self, snap: Snapshot) -> float:
+        """How long the nearest vehicle ahead of the ego, in its corridor, has been standing."""
+        if len(snap) == 0:
+            return 0.0
+        c, s = math.cos(self.ego[4]), math.sin(self.ego[4])
+        dx, dy = snap.x - self.ego[0], snap.y - self.ego[1]
+        ahead, lateral = dx * c + dy * s, -dx * s + dy * c
+        front = (snap.kind != "pedestrian") & (ahead > 0) & (ahead < FRONT_LOOKAHEAD_M) & (
+            np.abs(lateral) < FRONT_CORRIDOR_HALF_WIDTH_M)
+        stopped_now = {str(i) for i in snap.ids[snap.speed < STOPPED_SPEED_MPS]}
+        self._stopped_since = {pid: t for pid, t in self._stopped_since.items() if pid in stopped_now}
+        for pid in stopped_now:
+            self._stopped_since.setdefault(pid, self.time_s)
+        if not front.any():
+            return 0.0
+        nearest = str(snap.ids[np.flatnonzero(front)[np.argmin(ahead[front])]])
+        since = self._stopped_since.get(nearest)
+        return 0.0 if since is None else self.time_s - since
+
+    def _perceive(self, snap: Snapshot) -> Perceived:
+        mask = covered(self.ego[0], self.ego[1], self.ego[4], snap.x, snap.y, DEFAULT_SENSORS)
+        rows = np.flatnonzero(mask)
+        truth = np.column_stack([snap.x[rows], snap.y[rows], snap.speed[rows], snap.heading[rows],
+                                 snap.length[rows], snap.width[rows]])
+        kinds = snap.kind[rows]
+        observed = add_noise(truth, kinds, self._noise_rng) if self.config.perception_noise else truth
+        return Perceived(rows, kinds, observed)
+
+    def _observe(self, snap: Snapshot) -> Observation:
+        return Observation(
+            time_s=self.time_s,
+            ego=self.ego.copy(),
+            light=self._light(),
+            distance_to_stop_line_m=self._distance_to_stop_line(self.ego),
+            front_vehicle_stopped_s=self._front_vehicle_stopped_s(snap),
+            participants=snap,
+            abnormal_ids=self._abnormal_ids,
+            perceived=self._perceive(snap),
+            candidates=self.candidates,
+        )
+
+    def _judge(self, snap: Snapshot, obs: Observation, previous_distance: float) -> Outcome | None:
+        """The episode's outcome after this step, judged on the true footprints (None: go on)."""
+        x, y, _, _, heading = self.ego[:5]
+        hits = overlapping((x, y, heading, EGO_LENGTH_M, EGO_WIDTH_M),
+                           snap.x, snap.y, snap.heading, snap.length, snap.width)
+        if hits.any():
+            i = int(np.flatnonzero(hits)[0])
+            return Outcome("collision", self.time_s, f"hit {snap.kind[i]} {snap.ids[i]}",
+                           str(snap.kind[i]))
+        if previous_distance >= 0.0 > obs.distance_to_stop_line_m:
+            self._stop_line_crossed_s = self.time_s
+            if obs.light.light == "red":
+                return Outcome("red_light", self.time_s, "crossed the stop line on red")
+        corners = rectangle_corners(x, y, heading, EGO_LENGTH_M, EGO_WIDTH_M)
+        if not shapely.contains_xy(self._road, corners[:, 0], corners[:, 1]).all():
+            return Outcome("off_road", self.time_s, "left the drivable area")
+        if (self._stop_line_crossed_s is not None
+                and shapely.contains_xy(self._target_exit, x, y)
+                and not shapely.contains_xy(self._inside, corners[:, 0], corners[:, 1]).any()):
+            return Outcome("passed", self.time_s)
+        if self.time_s >= self.config.timeout_s - 1e-9:
+            return Outcome("timeout", self.time_s, f"still driving after {self.config.timeout_s:g} s")
+        return None
+
+    @property
+    def stop_line_crossed_s(self) -> float | None:
+        """[s] since entry at which the ego's front bumper crossed the stop line, if it has."""
+        return self._stop_line_crossed_s
+
+    def close(self) -> None:
+        self.session.close()
+        shutil.rmtree(self._work_dir, ignore_errors=True)
+
+    def __enter__(self) -> World:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
