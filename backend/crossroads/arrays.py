@@ -1,117 +1,249 @@
-"""A tiny numpy / torch dispatch, so each model is written once for both backends.
+"""A minimal array namespace so one formula serves numpy arrays and torch tensors.
 
-``ops(x)`` returns the namespace for the backend of ``x``: :data:`NUMPY` for numpy arrays, Python
-numbers and lists, :data:`TORCH` for ``torch.Tensor``. Torch is only imported when a tensor is
-seen (detected by its type's module), so numpy-only users never pay for importing it.
+The maths of the driving world (``sim/ego.py``, ``sim/other.py``, ``idc/*``) is written once against
+the handful of operations below. :func:`ops` picks the numpy or the torch implementation from the
+inputs: torch when any input is a ``torch.Tensor``, numpy otherwise. torch is never imported by this
+module: a tensor can only exist if the caller already imported torch, so numpy-only users (the
+online controller, the world) do not pay torch's import time.
 
-Only the handful of functions the models need are provided; each has the same meaning in both
-namespaces (``axis`` is ``dim`` for torch). Torch versions are differentiable wherever the maths is.
+All functions broadcast over leading dimensions; ``axis``/``dim`` follow numpy's meaning. The torch
+versions are differentiable wherever the operation is (clip/where pass gradients to the selected
+branch, argmin is index selection).
 """
 
 from __future__ import annotations
 
 import math
+import sys
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-
-def is_torch(x: Any) -> bool:
-    """True for a ``torch.Tensor`` (without importing torch)."""
-    return type(x).__module__.startswith("torch")
+Array = Any  # numpy.ndarray | torch.Tensor; kept loose on purpose (torch is optional at import time)
 
 
-class _Numpy:
+def is_torch(x: object) -> bool:
+    """True when ``x`` is a torch tensor (without importing torch)."""
+    torch = sys.modules.get("torch")
+    return torch is not None and isinstance(x, torch.Tensor)
+
+
+class NumpyOps:
+    """The namespace for numpy arrays (and Python scalars)."""
+
     name = "numpy"
-    sin, cos, sqrt, abs, arctan2 = np.sin, np.cos, np.sqrt, np.abs, np.arctan2
-    minimum, maximum, where = np.minimum, np.maximum, np.where
 
     @staticmethod
-    def asarray(x: Any, like: Any = None) -> np.ndarray:
+    def asarray(x: Any, like: Array | None = None) -> np.ndarray:
+        """``x`` as a float array: the dtype of ``like`` when that is a floating array, else a
+        floating ``x`` is kept as is and anything else becomes float64."""
+        if isinstance(like, np.ndarray) and like.dtype.kind == "f":
+            return np.asarray(x, dtype=like.dtype)
+        if isinstance(x, np.ndarray) and x.dtype.kind == "f":
+            return x
         return np.asarray(x, dtype=np.float64)
 
+    sin = staticmethod(np.sin)
+    cos = staticmethod(np.cos)
+    sqrt = staticmethod(np.sqrt)
+    abs = staticmethod(np.abs)
+    atan2 = staticmethod(np.arctan2)
+    where = staticmethod(np.where)
+    maximum = staticmethod(np.maximum)
+    minimum = staticmethod(np.minimum)
+    broadcast_to = staticmethod(np.broadcast_to)
+
     @staticmethod
-    def clip(x: Any, lo: Any, hi: Any) -> np.ndarray:
+    def clip(x: Array, lo: Any = None, hi: Any = None) -> np.ndarray:
         return np.clip(x, lo, hi)
 
     @staticmethod
-    def stack(xs: list, axis: int = -1) -> np.ndarray:
+    def stack(xs: Sequence[Array], axis: int = -1) -> np.ndarray:
         return np.stack(np.broadcast_arrays(*xs), axis=axis)
 
     @staticmethod
-    def concat(xs: list, axis: int = -1) -> np.ndarray:
+    def concat(xs: Sequence[Array], axis: int = -1) -> np.ndarray:
         return np.concatenate(xs, axis=axis)
 
     @staticmethod
-    def sum(x: Any, axis: int = -1) -> np.ndarray:
+    def sum(x: Array, axis: int | None = None) -> np.ndarray:
         return np.sum(x, axis=axis)
 
     @staticmethod
-    def wrap(angle: Any) -> np.ndarray:
-        """Angle wrapped into [-π, π)."""
-        return np.mod(np.asarray(angle) + math.pi, 2.0 * math.pi) - math.pi
+    def argmin(x: Array, axis: int = -1) -> np.ndarray:
+        return np.argmin(x, axis=axis)
 
     @staticmethod
-    def zeros_like(x: Any) -> np.ndarray:
+    def take_along(x: Array, idx: Array, axis: int) -> np.ndarray:
+        return np.take_along_axis(x, idx, axis=axis)
+
+    @staticmethod
+    def zeros_like(x: Array) -> np.ndarray:
         return np.zeros_like(x)
 
+    @staticmethod
+    def wrap(angle_rad: Array) -> np.ndarray:
+        """Angles wrapped into [−π, π) (the formula of :func:`crossroads.geometry.wrap_angle`)."""
+        return np.mod(angle_rad + np.pi, 2.0 * np.pi) - np.pi
 
-class _Torch:
+
+class TorchOps:
+    """The namespace for torch tensors (numpy inputs mixed in are converted to the tensor's dtype)."""
+
     name = "torch"
 
-    def __init__(self) -> None:
+    @staticmethod
+    def asarray(x: Any, like: Array | None = None) -> Any:
+        """``x`` as a floating tensor.
+
+        With a tensor ``like``: ``x`` converted to its dtype and device (a tensor by ``.to``, so its
+        gradient still flows; ``x is like`` returns it unchanged). Otherwise a floating tensor is
+        kept as is, a numpy array keeps its float dtype (float64 for other data), and anything
+        else gets torch's default dtype.
+        """
         import torch
 
-        self.torch = torch
-        self.sin, self.cos, self.sqrt, self.abs = torch.sin, torch.cos, torch.sqrt, torch.abs
-        self.arctan2, self.minimum, self.maximum = torch.atan2, torch.minimum, torch.maximum
-        self.zeros_like = torch.zeros_like
+        if isinstance(like, torch.Tensor) and like.dtype.is_floating_point:
+            if isinstance(x, torch.Tensor):
+                return x.to(dtype=like.dtype, device=like.device)
+            return torch.as_tensor(np.asarray(x, dtype=np.float64), dtype=like.dtype, device=like.device)
+        if isinstance(x, torch.Tensor):
+            return x if x.dtype.is_floating_point else x.to(torch.get_default_dtype())
+        if isinstance(x, np.ndarray):
+            return torch.as_tensor(x if x.dtype.kind == "f" else x.astype(np.float64))
+        return torch.as_tensor(x, dtype=torch.get_default_dtype())
 
-    def asarray(self, x: Any, like: Any = None) -> Any:
-        if is_torch(x):
-            return x if like is None else x.to(dtype=like.dtype, device=like.device)
-        if like is None:
-            return self.torch.as_tensor(np.asarray(x, dtype=np.float64))
-        return self.torch.as_tensor(np.asarray(x, dtype=np.float64), dtype=like.dtype, device=like.device)
+    @staticmethod
+    def sin(x: Any) -> Any:
+        import torch
 
-    def clip(self, x: Any, lo: Any, hi: Any) -> Any:
-        return self.torch.clamp(x, lo, hi)
+        return torch.sin(x)
 
-    def where(self, cond: Any, a: Any, b: Any) -> Any:
-        return self.torch.where(cond, a, b)
+    @staticmethod
+    def cos(x: Any) -> Any:
+        import torch
 
-    def stack(self, xs: list, axis: int = -1) -> Any:
-        return self.torch.stack(self.torch.broadcast_tensors(*xs), dim=axis)
+        return torch.cos(x)
 
-    def concat(self, xs: list, axis: int = -1) -> Any:
-        return self.torch.cat(xs, dim=axis)
+    @staticmethod
+    def sqrt(x: Any) -> Any:
+        import torch
 
-    def sum(self, x: Any, axis: int = -1) -> Any:
-        return self.torch.sum(x, dim=axis)
+        return torch.sqrt(x)
 
-    def wrap(self, angle: Any) -> Any:
-        """Angle wrapped into [-π, π)."""
-        return self.torch.remainder(angle + math.pi, 2.0 * math.pi) - math.pi
+    @staticmethod
+    def abs(x: Any) -> Any:
+        import torch
+
+        return torch.abs(x)
+
+    @staticmethod
+    def atan2(y: Any, x: Any) -> Any:
+        import torch
+
+        return torch.atan2(y, x)
+
+    @staticmethod
+    def where(cond: Any, a: Any, b: Any) -> Any:
+        import torch
+
+        return torch.where(cond, a, b)
+
+    @staticmethod
+    def maximum(a: Any, b: Any) -> Any:
+        import torch
+
+        return torch.maximum(a, b)
+
+    @staticmethod
+    def minimum(a: Any, b: Any) -> Any:
+        import torch
+
+        return torch.minimum(a, b)
+
+    @staticmethod
+    def broadcast_to(x: Any, shape: Sequence[int]) -> Any:
+        import torch
+
+        return torch.broadcast_to(x, tuple(shape))
+
+    @staticmethod
+    def clip(x: Any, lo: Any = None, hi: Any = None) -> Any:
+        import torch
+
+        return torch.clamp(x, min=lo, max=hi)
+
+    @staticmethod
+    def stack(xs: Sequence[Any], axis: int = -1) -> Any:
+        import torch
+
+        return torch.stack(torch.broadcast_tensors(*xs), dim=axis)
+
+    @staticmethod
+    def concat(xs: Sequence[Any], axis: int = -1) -> Any:
+        import torch
+
+        return torch.cat(list(xs), dim=axis)
+
+    @staticmethod
+    def sum(x: Any, axis: int | None = None) -> Any:
+        import torch
+
+        return torch.sum(x) if axis is None else torch.sum(x, dim=axis)
+
+    @staticmethod
+    def argmin(x: Any, axis: int = -1) -> Any:
+        import torch
+
+        return torch.argmin(x, dim=axis)
+
+    @staticmethod
+    def take_along(x: Any, idx: Any, axis: int) -> Any:
+        import torch
+
+        return torch.take_along_dim(x, idx, dim=axis)
+
+    @staticmethod
+    def zeros_like(x: Any) -> Any:
+        import torch
+
+        return torch.zeros_like(x)
+
+    @staticmethod
+    def wrap(angle_rad: Any) -> Any:
+        """Angles wrapped into [−π, π) (gradient 1 everywhere but at the jump)."""
+        import torch
+
+        return torch.remainder(angle_rad + math.pi, 2.0 * math.pi) - math.pi
 
 
-NUMPY = _Numpy()
-_TORCH: _Torch | None = None
+Ops = type[NumpyOps] | type[TorchOps]
 
 
-def torch_ops() -> _Torch:
-    global _TORCH
-    if _TORCH is None:
-        _TORCH = _Torch()
-    return _TORCH
+def ops(*arrays: object) -> Ops:
+    """The namespace for these inputs: torch if any of them is a tensor, numpy otherwise.
+
+    ``None`` entries (an optional argument left out) are ignored.
+    """
+    return TorchOps if any(is_torch(a) for a in arrays) else NumpyOps
 
 
-def ops(*xs: Any) -> Any:
-    """The namespace for the backend of the inputs: torch if any of them is a tensor, else numpy."""
-    return torch_ops() if any(is_torch(x) for x in xs) else NUMPY
+def as_backend(x: Any, like: Array) -> Array:
+    """``x`` (scalar, list, numpy array or tensor) converted to the backend, dtype and device of ``like``.
 
-
-def as_backend(x: Any, like: Any) -> Any:
-    """``x`` converted to the backend (and, for torch, dtype/device) of ``like``."""
+    With a tensor ``like``, a tensor ``x`` is converted by ``.to`` so its gradient still flows.
+    """
     if is_torch(like):
-        return torch_ops().asarray(x, like=like)
-    return np.asarray(x, dtype=np.float64)
+        import torch
+
+        if isinstance(x, torch.Tensor):
+            return x.to(dtype=like.dtype, device=like.device)
+        return torch.as_tensor(np.asarray(x, dtype=np.float64), dtype=like.dtype, device=like.device)
+    dtype = like.dtype if isinstance(like, np.ndarray) and like.dtype.kind == "f" else np.float64
+    return np.asarray(x, dtype=dtype)
+
+
+def wrap_angle(xp: Ops, angle_rad: Array) -> Array:
+    """Angles wrapped into [−π, π) with the namespace ``xp`` (same as ``xp.wrap``)."""
+    return xp.wrap(angle_rad)

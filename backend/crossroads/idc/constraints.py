@@ -27,7 +27,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from crossroads.arrays import as_backend, ops
+from crossroads.arrays import ops
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M
 from crossroads.idc.state import (
     DPHI,
@@ -49,7 +49,7 @@ EGO_CIRCLE_OFFSET_M = EGO_LENGTH_M / 4.0  # [m] ego circle centres at ± this al
 EGO_RADIUS_M = math.hypot(EGO_LENGTH_M / 4.0, EGO_WIDTH_M / 2.0)  # [m]
 LANE_WIDTH_M = 3.5  # [m] (choice) nominal lane width for the road constraint
 ROAD_LATERAL_BOUND_M = LANE_WIDTH_M / 2.0  # [m] (choice) |lateral offset| of each ego circle centre
-_EPS = 1e-12  # inside the square root, so the distance is differentiable at 0
+_EPS = 1e-12  # inside the square roots, so distances and radii are differentiable at 0
 
 TWO_CIRCLE_SLOTS = tuple(i for i, k in enumerate(KIND_OF_SLOT) if k != "pedestrian")
 ONE_CIRCLE_SLOTS = tuple(i for i, k in enumerate(KIND_OF_SLOT) if k == "pedestrian")
@@ -69,14 +69,14 @@ def ego_circles(state: Any) -> tuple[Any, Any, float]:
 def safety_constraints(state: Any, safety_margin_m: float = SAFETY_MARGIN_M) -> Any:
     """g[..., 56] between the ego's circles and every participant's circles (module docstring)."""
     xp = ops(state)
-    state = xp.asarray(state)
+    state = xp.asarray(state, like=state)
     ex, ey, er = ego_circles(state)  # [..., 2]
     o = others_block(state)  # [..., 16, 6]
     ox, oy, ophi = o[..., O_PX], o[..., O_PY], o[..., O_PHI]
     length, width = o[..., O_L], o[..., O_W]
     off = length / 4.0
-    r2 = xp.sqrt(off * off + width * width / 4.0)
-    r1 = xp.sqrt(length * length / 4.0 + width * width / 4.0)
+    r2 = xp.sqrt(off * off + width * width / 4.0 + _EPS)
+    r1 = xp.sqrt(length * length / 4.0 + width * width / 4.0 + _EPS)
     cx, sx = off * xp.cos(ophi), off * xp.sin(ophi)
     n2 = len(TWO_CIRCLE_SLOTS)
     # two-circle participants (the leading slots): centres [..., n2, 2], radii [..., n2, 1]
@@ -107,13 +107,13 @@ def road_constraints(
     against that reference.
     """
     xp = ops(state, ref_x, ref_y, ref_heading)
-    state = xp.asarray(state)
+    state = xp.asarray(state, like=state)
     if ref_x is None:
         dy, dphi = state[..., DY], state[..., DPHI]
         shift = EGO_CIRCLE_OFFSET_M * xp.sin(dphi)
         lat = xp.stack([dy - shift, dy + shift], axis=-1)
     else:
-        rx, ry, rh = (as_backend(r, state) for r in (ref_x, ref_y, ref_heading))
+        rx, ry, rh = (xp.asarray(r, like=state) for r in (ref_x, ref_y, ref_heading))
         ex, ey, _ = ego_circles(state)
         c, s = xp.cos(rh)[..., None], xp.sin(rh)[..., None]
         lat = c * (ey - ry[..., None]) - s * (ex - rx[..., None])
@@ -124,6 +124,6 @@ def road_constraints(
 def penalty(g: Any) -> Any:
     """φ = Σ over the last axis of min{0, −g}² (exterior point method): > 0 only where g > 0."""
     xp = ops(g)
-    g = xp.asarray(g)
-    m = xp.minimum(-g, xp.zeros_like(g))
+    g = xp.asarray(g, like=g)
+    m = xp.clip(-g, None, 0.0)
     return xp.sum(m * m, axis=-1)

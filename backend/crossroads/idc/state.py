@@ -20,7 +20,8 @@ the path heading, lateral positive to the left), the paper's "longitudinal / lat
 error": Δx² + Δy² is the squared distance to the path whatever the frame, so the utility is
 unchanged, while the errors do not depend on how the intersection is oriented. Δv = v_x − v_ref
 (v_ref from the pass or stop speed profile, the only thing the speed mode changes, SPEC §7) and
-Δφ = φ − φ_ref wrapped into [-π, π).
+Δφ = φ − φ_ref wrapped to ±π (``arrays.wrap_angle``; the numpy fast path of build_states wraps
+into [-π, π), which differs only exactly at ±π).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from crossroads.arrays import as_backend, ops
+from crossroads.arrays import ops
 from crossroads.constants import (
     ACCEL_MIN,
     EGO_LENGTH_M,
@@ -82,8 +83,9 @@ assert OTHERS.stop - OTHERS.start == OTHER_STATE_DIM * N_OTHERS == STATE_DIM - 1
 PAD_DISTANCE_M = 100.0
 """[m] (choice) distance of the virtual participants that fill empty slots.
 
-A pad stands PAD_DISTANCE_M behind the ego (opposite to its heading), facing away from it, speed 0,
-with the ego's size. No sensor sees that far (80 m at most), so a pad is never confused with a real
+A pad stands PAD_DISTANCE_M behind the ego (opposite to its heading), heading the ego's way, speed 0,
+with the ego's size (heading like the ego keeps its relative heading in the network input at 0,
+away from the ±π discontinuity). No sensor sees that far (80 m at most), so a pad is never confused with a real
 participant; and over a prediction horizon of T = 25 steps (2.5 s) it cannot come within any
 safety threshold: the adversary's ξ moves it at most 25·0.8·√2 ≈ 28 m plus ≈ 7 m from the speed
 ξ_v accumulates, the ego drives at most ≈ 40 m, and thresholds are a few metres — so its safety
@@ -97,12 +99,11 @@ def _wrap(angle: float) -> float:
 
 
 def pad_participant(ego: ArrayLike) -> FloatArray:
-    """The virtual participant ``[p_x, p_y, 0, φ + π, L_ego, W_ego]`` for the ego state ``ego`` (8,)."""
+    """The virtual participant ``[p_x − D cos φ, p_y − D sin φ, 0, φ, L_ego, W_ego]`` (D = PAD_DISTANCE_M)."""
     e = np.asarray(ego, dtype=np.float64)
     phi = float(e[PHI]) if e.shape[-1] > PHI else 0.0
     c, s = math.cos(phi), math.sin(phi)
-    away = _wrap(phi + math.pi)
-    return np.array([e[PX] - PAD_DISTANCE_M * c, e[PY] - PAD_DISTANCE_M * s, 0.0, away, EGO_LENGTH_M, EGO_WIDTH_M])
+    return np.array([e[PX] - PAD_DISTANCE_M * c, e[PY] - PAD_DISTANCE_M * s, 0.0, phi, EGO_LENGTH_M, EGO_WIDTH_M])
 
 
 def select_others(
@@ -151,8 +152,8 @@ def tracking_error(ego: Any, ref_x: Any, ref_y: Any, ref_heading: Any, ref_v: An
     Δv = v_x − v_ref; Δφ = φ − φ_ref wrapped. Numpy or torch (differentiable in the ego state).
     """
     xp = ops(ego, ref_x, ref_y, ref_heading, ref_v)
-    ego = xp.asarray(ego)
-    rx, ry, rh, rv = (as_backend(r, ego) for r in (ref_x, ref_y, ref_heading, ref_v))
+    ego = xp.asarray(ego, like=ego)
+    rx, ry, rh, rv = (xp.asarray(r, like=ego) for r in (ref_x, ref_y, ref_heading, ref_v))
     dx, dy = ego[..., PX] - rx, ego[..., PY] - ry
     c, s = xp.cos(rh), xp.sin(rh)
     return xp.stack([c * dx + s * dy, -s * dx + c * dy, ego[..., VX] - rv, xp.wrap(ego[..., PHI] - rh)], axis=-1)
@@ -408,10 +409,10 @@ def network_input(states: Any) -> Any:
     |a_min|; x_track is already path-relative (Δx, Δy / 2 m, Δv / 10 m/s, Δφ / π). Each other
     participant becomes [x, y] = its position relative to the ego rotated into the ego frame
     (x forward, y left) / 20 m, v / 10 m/s, its heading relative to the ego's wrapped / π, L and
-    W / 5 m. Pads (100 m behind) thus sit at (−5, 0), speed 0, relative heading −1.
+    W / 5 m. Pads (100 m behind) thus sit at (−5, 0), speed 0, relative heading 0.
     """
     xp = ops(states)
-    states = xp.asarray(states)
+    states = xp.asarray(states, like=states)
     px, py, phi = states[..., PX], states[..., PY], states[..., PHI]
     zero = xp.zeros_like(px)
     ego = xp.stack([zero, zero, states[..., VX] / SPEED_SCALE_MPS, states[..., VY] / SPEED_SCALE_MPS, zero,

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from crossroads.arrays import as_backend, ops
+from crossroads.arrays import ops
 from crossroads.constants import UTILITY_WEIGHTS
 from crossroads.idc.state import ACC, DELTA, DPHI, DV, DX, DY, OMEGA
 
@@ -25,8 +25,8 @@ def utility(state: Any, action: Any) -> tuple[Any, dict[str, Any]]:
     l is their sum. The action is taken as given (clip it first if it may lie outside its range).
     """
     xp = ops(state, action)
-    state = xp.asarray(state)
-    action = as_backend(action, state)
+    state = xp.asarray(state, like=state)
+    action = xp.asarray(action, like=state)
     parts: dict[str, Any] = {}
     for name, k in _STATE_TERMS.items():
         parts[name] = UTILITY_WEIGHTS[name] * state[..., k] ** 2

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from crossroads.arrays import as_backend, ops
+from crossroads.arrays import ops
 from crossroads.constants import (
     ACCEL_MAX,
     ACCEL_MIN,
@@ -51,7 +51,7 @@ from crossroads.constants import (
 def clip_action(action: Any) -> Any:
     """``[Δδ, Δa]`` clipped to |Δδ| ≤ 0.4 rad/s and |Δa| ≤ 4.5 m/s³ (same backend and shape)."""
     xp = ops(action)
-    action = xp.asarray(action)
+    action = xp.asarray(action, like=action)
     return xp.stack([xp.clip(action[..., 0], -STEER_RATE_MAX, STEER_RATE_MAX),
                      xp.clip(action[..., 1], -JERK_MAX, JERK_MAX)], axis=-1)
 
@@ -63,8 +63,8 @@ def ego_step(state: Any, action: Any, dt: float = DT_S) -> Any:
     their ranges and v_x is kept ≥ 0 (module docstring). Numpy in, numpy out; tensor in, tensor out.
     """
     xp = ops(state, action)
-    state = xp.asarray(state)
-    action = as_backend(action, state)
+    state = xp.asarray(state, like=state)
+    action = xp.asarray(action, like=state)
     u = clip_action(action)
     px, py, vx, vy, phi, omega, delta, acc = (state[..., i] for i in range(8))
     d_delta, d_acc = u[..., 0], u[..., 1]
@@ -83,5 +83,5 @@ def ego_step(state: Any, action: Any, dt: float = DT_S) -> Any:
     )
     delta_next = xp.clip(delta + dt * d_delta, -STEER_MAX, STEER_MAX)
     acc_next = xp.clip(acc + dt * d_acc, ACCEL_MIN, ACCEL_MAX)
-    vx_next = xp.maximum(vx_next, xp.zeros_like(vx_next))
+    vx_next = xp.clip(vx_next, 0.0, None)
     return xp.stack([px_next, py_next, vx_next, vy_next, phi_next, omega_next, delta_next, acc_next], axis=-1)

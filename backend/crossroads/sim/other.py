@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from crossroads.arrays import as_backend, ops
+from crossroads.arrays import ops
 from crossroads.constants import DT_S
 from crossroads.geometry import arc_lengths, as_points, drop_repeated_points, wrap_angle
 
@@ -34,15 +34,15 @@ def other_step(others: Any, curvature: Any, xi: Any | None = None, dt: float = D
     all); ``xi = [ξ_x, ξ_y, ξ_v, ξ_φ]`` broadcasts against ``others[..., :4]``.
     """
     xp = ops(others, curvature, xi)
-    others = xp.asarray(others)
-    kappa = as_backend(curvature, others)
+    others = xp.asarray(others, like=others)
+    kappa = xp.asarray(curvature, like=others)
     px, py, v, phi, length, width = (others[..., i] for i in range(6))
     px_n = px + dt * v * xp.cos(phi)
     py_n = py + dt * v * xp.sin(phi)
     v_n = v
     phi_n = phi + dt * v * kappa
     if xi is not None:
-        xi = as_backend(xi, others)
+        xi = xp.asarray(xi, like=others)
         px_n, py_n = px_n + xi[..., 0], py_n + xi[..., 1]
         v_n, phi_n = v_n + xi[..., 2], phi_n + xi[..., 3]
     return xp.stack([px_n, py_n, v_n, phi_n, length, width], axis=-1)

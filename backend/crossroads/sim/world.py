@@ -46,6 +46,7 @@ OUTCOMES: tuple[OutcomeKind, ...] = ("passed", "collision", "red_light", "off_ro
 
 OFF_ROAD_TOLERANCE_M = 0.5  # [m] a corner may overhang the drivable area this much (kerb, paint)
 SPAWN_CLEARANCE_M = 6.0  # [m] participants this close to the ego's start are removed at entry
+SPAWN_CLEAR_AHEAD_S = 3.0  # [s] ...and those within this much driving time ahead on its lane
 FRONT_CORRIDOR_HALF_WIDTH_M = 1.75  # [m] "in front of the ego": within half a lane of its axis
 FRONT_LOOKAHEAD_M = 30.0  # [m] how far ahead the congestion check looks for a front vehicle
 STOPPED_SPEED_MPS = 0.1  # [m/s] below this a vehicle counts as stopped
@@ -175,7 +176,7 @@ class World:
         self.signal_offset_s = apply_start(self.session, self.program,
                                            cfg.signal_start.phase_index, cfg.signal_start.elapsed_s)
         x, y, heading = self._start_pose()
-        self._clear_spawn(x, y)
+        self._clear_spawn(x, y, heading, cfg.ego_start.speed_mps)
         exit_edge = self.junction.lanes[self.candidates[0].exit_lane].edge_id
         self.session.add_ego(EGO_ID, [self.approach.incoming_edge, exit_edge],
                              depart_lane=self.start_lane.index)
@@ -190,10 +191,19 @@ class World:
         self.outcome: Outcome | None = None
         return self._observe(self.session.snapshot())
 
-    def _clear_spawn(self, x: float, y: float) -> None:
-        """Remove whoever stands where the ego enters, so an episode never starts in a crash."""
+    def _clear_spawn(self, x: float, y: float, heading: float, speed: float) -> None:
+        """Remove whoever is in the ego's way as it enters, so no episode starts in a crash.
+
+        The cleared box runs along the start lane from behind the ego to as far as it covers in
+        SPAWN_CLEAR_AHEAD_S at its start speed, across the lane and half of each neighbour.
+        """
         snap = self.session.snapshot()
-        close = np.hypot(snap.x - x, snap.y - y) < SPAWN_CLEARANCE_M
+        dx, dy = snap.x - x, snap.y - y
+        along = dx * math.cos(heading) + dy * math.sin(heading)
+        across = -dx * math.sin(heading) + dy * math.cos(heading)
+        ahead = SPAWN_CLEARANCE_M + SPAWN_CLEAR_AHEAD_S * speed
+        close = (along > -SPAWN_CLEARANCE_M) & (along < ahead) & (
+            np.abs(across) < self.start_lane.width_m)
         for pid in snap.ids[close]:
             self.session.remove(str(pid))
         if close.any():
