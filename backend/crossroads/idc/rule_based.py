@@ -43,6 +43,8 @@ PREDICTION_STEP_S = 0.5  # [s]
 STOP_GAP_M = 3.0  # [m] stop this far short of a conflict (front bumper to conflict point)
 MIN_CHECK_DISTANCE_M = 10.0  # [m] the path ahead that is always checked for conflicts
 CHECK_TIME_S = 3.0  # [s] plus the distance covered in this time at the current speed
+SEARCH_BEHIND = 10  # path points searched behind the last nearest one (5 m at 0.5 m spacing)
+SEARCH_AHEAD = 40  # ... and ahead of it (20 m: more than 0.1 s at any speed)
 
 
 class RuleBasedController:
@@ -53,17 +55,28 @@ class RuleBasedController:
     def __init__(self) -> None:
         self._candidates: tuple[CandidatePath, ...] = ()
         self._path_index: int | None = None
+        self._point_hint = 0
 
     def reset(self, candidates: Sequence[CandidatePath]) -> None:
         self._candidates = tuple(candidates)
         self._path_index = None
+        self._point_hint = 0
+
+    def _progress(self, path: CandidatePath, x: float, y: float) -> float:
+        """Arc length [m] of the path point nearest the ego, searched near the last one."""
+        lo = max(0, self._point_hint - SEARCH_BEHIND)
+        window = path.points[lo:self._point_hint + SEARCH_AHEAD]
+        i = lo + int(np.argmin((window[:, 0] - x) ** 2 + (window[:, 1] - y) ** 2))
+        self._point_hint = i
+        return float(path.s[i])
 
     def decide(self, observation: Observation) -> Decision:
         ego = observation.ego
         x, y, vx, _, heading, _, delta, accel = ego
         if self._path_index is None:
-            self._path_index = int(np.argmin([abs(c.project(x, y).lateral_m)
-                                              for c in self._candidates]))
+            projections = [c.project(x, y) for c in self._candidates]
+            self._path_index = int(np.argmin([abs(p.lateral_m) for p in projections]))
+            self._point_hint = projections[self._path_index].index
         path = self._candidates[self._path_index]
         mode: SpeedMode = choose_speed_mode(
             front_vehicle_stopped_s=observation.front_vehicle_stopped_s,
@@ -73,18 +86,18 @@ class RuleBasedController:
             speed_mps=float(vx),
             yellow_remaining_s=observation.light.remaining_s,
         )
-        here = path.project(x, y)
+        s_ego = self._progress(path, x, y)
         lookahead = LOOKAHEAD_BASE_M + LOOKAHEAD_PER_MPS * vx
-        tx, ty, _, _ = path.reference_at(here.s_m + lookahead, mode)
+        tx, ty, _, _ = path.reference_at(s_ego + lookahead, mode)
         alpha = wrap_angle(math.atan2(ty - y, tx - x) - heading)
         steer_target = math.atan2(2.0 * WHEELBASE_M * math.sin(alpha), lookahead)
         steer_target = float(np.clip(steer_target, -STEER_MAX, STEER_MAX))
 
-        _, _, _, v_ref = path.reference_at(here.s_m + max(vx, 1.0) * DT_S * 5, mode)
+        _, _, _, v_ref = path.reference_at(s_ego + max(vx, 1.0) * DT_S * 5, mode)
         accel_target = SPEED_GAIN * (v_ref - vx)
-        conflict_s = self._conflict_distance(observation, path, here.s_m, vx)
+        conflict_s = self._conflict_distance(observation, path, s_ego, vx)
         if conflict_s is not None:
-            gap = conflict_s - here.s_m - EGO_LENGTH_M / 2.0 - STOP_GAP_M
+            gap = conflict_s - s_ego - EGO_LENGTH_M / 2.0 - STOP_GAP_M
             # uniform deceleration to a stop in the gap; full braking once the gap is gone
             stop_accel = -vx * vx / (2.0 * gap) if gap > 0.5 else ACCEL_MIN
             accel_target = min(accel_target, stop_accel)
@@ -96,10 +109,13 @@ class RuleBasedController:
     def _conflict_distance(self, obs: Observation, path: CandidatePath, s_ego: float,
                            vx: float) -> float | None:
         """Arc length of the first point on the path ahead that a perceived participant blocks."""
+        reach = s_ego + max(MIN_CHECK_DISTANCE_M, vx * CHECK_TIME_S + MIN_CHECK_DISTANCE_M)
         seen = obs.perceived.observations
+        # only those that could reach the checked stretch within the prediction horizon
+        radius = reach - s_ego + EGO_LENGTH_M + seen[:, 2] * PREDICTION_HORIZON_S + CONFLICT_HALF_WIDTH_M
+        seen = seen[np.hypot(seen[:, 0] - obs.ego[0], seen[:, 1] - obs.ego[1]) < radius]
         if len(seen) == 0:
             return None
-        reach = s_ego + max(MIN_CHECK_DISTANCE_M, vx * CHECK_TIME_S + MIN_CHECK_DISTANCE_M)
         ahead = (path.s > s_ego + EGO_LENGTH_M / 2.0) & (path.s < reach)
         if not ahead.any():
             return None

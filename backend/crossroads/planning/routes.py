@@ -124,10 +124,11 @@ class CandidatePath:
     def reference_at(self, s_m: float, mode: str = "pass") -> tuple[float, float, float, float]:
         """Reference (x [m], y [m], heading [rad], speed [m/s]) at arc length ``s_m`` (clamped)."""
         s_m = min(max(s_m, 0.0), self.length_m)
-        x, y = point_at(self.points, s_m)
+        # interpolate on the stored arc lengths (called every control step: no recomputation)
         i = int(np.clip(np.searchsorted(self.s, s_m, side="right") - 1, 0, len(self.s) - 2))
         seg = self.s[i + 1] - self.s[i]
         w = 0.0 if seg <= 0.0 else (s_m - self.s[i]) / seg
+        x, y = self.points[i] + w * (self.points[i + 1] - self.points[i])
         h = float(wrap_angle(self.heading[i] + w * wrap_angle(self.heading[i + 1] - self.heading[i])))
         if mode == "pass":
             v = pass_speed(s_m, self.s_stop_line, self.s_exit)

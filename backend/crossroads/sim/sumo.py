@@ -61,13 +61,14 @@ KEEP_ROUTE_OFF_ROAD = 2  # like 0 but may also leave the road network
 KEEP_ROUTE_EXACT = KEEP_ROUTE_ON_ROUTE | KEEP_ROUTE_OFF_ROAD
 
 _INVALID = libsumo.INVALID_DOUBLE_VALUE
+# Subscribed every step; the edge id is derived from the lane id when asked (SUMO lane ids are
+# "<edge>_<index>"), which keeps the per-step transfer small.
 _VEH_VARS = (
     libsumo.VAR_POSITION, libsumo.VAR_ANGLE, libsumo.VAR_SPEED,
-    libsumo.VAR_LANE_ID, libsumo.VAR_ROAD_ID, libsumo.VAR_ROUTE_INDEX,
+    libsumo.VAR_LANE_ID, libsumo.VAR_ROUTE_INDEX,
 )
-_PER_VARS = (libsumo.VAR_POSITION, libsumo.VAR_ANGLE, libsumo.VAR_SPEED,
-             libsumo.VAR_LANE_ID, libsumo.VAR_ROAD_ID)
-_POS, _ANG, _SPD, _LANE, _ROAD, _RIDX = _VEH_VARS
+_PER_VARS = (libsumo.VAR_POSITION, libsumo.VAR_ANGLE, libsumo.VAR_SPEED, libsumo.VAR_LANE_ID)
+_POS, _ANG, _SPD, _LANE, _RIDX = _VEH_VARS
 
 
 class SumoError(RuntimeError):
@@ -150,12 +151,17 @@ class Snapshot:
     length: NDArray[np.float64]
     width: NDArray[np.float64]
     lane_id: NDArray[np.str_]
-    edge_id: NDArray[np.str_]
     route_index: NDArray[np.int64]
     route: tuple[tuple[str, ...], ...]
 
     def __len__(self) -> int:
         return len(self.ids)
+
+    @functools.cached_property
+    def edge_id(self) -> NDArray[np.str_]:
+        """SUMO edge of each participant ("" when off the network), from its lane id."""
+        return np.array([lane.rsplit("_", 1)[0] if lane else "" for lane in self.lane_id],
+                        dtype=np.str_)
 
     def of_kind(self, kind: Kind) -> NDArray[np.bool_]:
         """Boolean mask of the participants of one kind."""
@@ -379,7 +385,6 @@ class SumoSession:
         statics: list[_Static] = []
         rows: list[tuple[float, float, float, float]] = []
         lanes: list[str] = []
-        roads: list[str] = []
         ridx: list[int] = []
         cache = self._static
         for alive, results, is_person in ((self._vehicles, vres, False), (self._persons, pres, True)):
@@ -395,7 +400,6 @@ class SumoSession:
                 statics.append(st if st is not None else self._static_of(pid, is_person))
                 rows.append((pos[0], pos[1], r[_ANG], r[_SPD]))
                 lanes.append(r[_LANE])
-                roads.append(r[_ROAD])
                 ridx.append(-1 if is_person else r[_RIDX])
         n = len(ids)
         arr = np.array(rows, dtype=np.float64).reshape(n, 4)
@@ -414,7 +418,6 @@ class SumoSession:
             length=length,
             width=np.array([s.width_m for s in statics], dtype=np.float64),
             lane_id=np.array(lanes, dtype=np.str_),
-            edge_id=np.array(roads, dtype=np.str_),
             route_index=np.array(ridx, dtype=np.int64),
             route=tuple(s.route for s in statics),
         )
