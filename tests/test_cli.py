@@ -78,3 +78,51 @@ def test_bad_task_is_rejected_by_name() -> None:
     result = crossroads("paths", "x", "--task", "backwards")
     assert result.returncode != 0
     assert "--task" in result.stderr
+
+
+NOMINAL_LEFT = str(REPO_ROOT / "scenarios" / "nominal" / "a_single_lane-left.yaml")
+
+
+def test_run_prints_a_reproducible_json_result(tmp_path: Path) -> None:
+    trace = tmp_path / "episode.trace.npz"
+    first = crossroads("run", NOMINAL_LEFT, "--policy", "rule", "--seed", "4", "--json",
+                       "--trace", str(trace))
+    assert first.returncode == 0, first.stderr
+    result = json.loads(first.stdout)
+    assert {"outcome", "travel_time_s", "steps", "seed"} <= set(result)
+    assert result["seed"] == 4
+    assert result["outcome"] in {"passed", "collision", "red_light", "off_road", "timeout"}
+    from crossroads.evaluation.trace import Trace
+
+    assert len(Trace.load(trace)) == result["steps"] + 1  # every step plus the final state
+    again = crossroads("run", NOMINAL_LEFT, "--seed", "4", "--json")
+    assert json.loads(again.stdout) == result
+
+
+def test_run_human_output() -> None:
+    result = crossroads("run", NOMINAL_LEFT, "--seed", "1")
+    assert result.returncode == 0, result.stderr
+    assert "a_single_lane-left seed 1:" in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("run", NOMINAL_LEFT, "--policy", "telepathy"), "unknown policy 'telepathy'"),
+        (("run", NOMINAL_LEFT, "--policy", "missing.pt"), "does not exist"),
+        (("run", "nowhere.yaml"), "nowhere.yaml"),
+    ],
+)
+def test_run_bad_input(args: tuple[str, ...], message: str) -> None:
+    result = crossroads(*args)
+    assert result.returncode == 2, result.stderr
+    assert message in result.stderr and "Traceback" not in result.stderr
+
+
+def test_run_bad_scenario_names_the_field(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("version: 1\nname: bad\nintersection: a_single_lane\ntask: left\n"
+                   "traffic: {vehicles_per_hour: -5}\n")
+    result = crossroads("run", str(bad))
+    assert result.returncode == 2
+    assert "traffic.vehicles_per_hour" in result.stderr

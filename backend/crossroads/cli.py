@@ -37,9 +37,12 @@ def _user_errors() -> tuple[type[BaseException], ...]:
     from crossroads.network.junction import JunctionError
     from crossroads.network.resolve import NetworkNotFoundError
     from crossroads.planning import PlanningError
+    from crossroads.evaluation.policies import PolicyError
+    from crossroads.sim.sumo import SumoError
     from crossroads.validation import SpecError
 
-    return (SpecError, JunctionError, NetworkNotFoundError, PlanningError, ValidationError)
+    return (SpecError, JunctionError, NetworkNotFoundError, PlanningError, ValidationError,
+            PolicyError, SumoError)
 
 
 def reports_errors(func: F) -> F:
@@ -141,6 +144,43 @@ def paths(
         )
     if plot is not None:
         typer.echo(f"plot: {plot}")
+
+
+@app.command()
+@reports_errors
+def run(
+    scenario: Annotated[Path, typer.Argument(metavar="SCENARIO.yaml", help="scenario file")],
+    policy: Annotated[str, typer.Option(help="'rule' or a trained checkpoint (.pt)")] = "rule",
+    seed: Annotated[int | None, typer.Option(help="episode seed (default: the scenario's first run seed)")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print the result as JSON")] = False,
+    trace: Annotated[Path | None, typer.Option(metavar="OUT", help="save the episode's trace (.trace.npz)")] = None,
+) -> None:
+    """Run one episode of a scenario and print its outcome and travel time."""
+    from crossroads.evaluation.episode import run_episode
+    from crossroads.evaluation.policies import load_controller
+    from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config
+    from crossroads.evaluation.trace import TraceRecorder
+    from crossroads.sim.world import World
+
+    spec = load_scenario(scenario)
+    controller = load_controller(policy)
+    episode_seed = run_seeds(spec, 1)[0] if seed is None else seed
+    recorder = TraceRecorder() if trace is not None else None
+    with World(to_world_config(spec, base_dir=scenario.parent)) as world:
+        result = run_episode(world, controller, episode_seed, recorder=recorder,
+                             scenario_name=spec.name)
+    if recorder is not None:
+        recorder.trace().save(trace)
+    if as_json:
+        json.dump({"scenario": spec.name, "policy": policy, **result.to_json()}, sys.stdout)
+        sys.stdout.write("\n")
+        return
+    travel = "" if result.travel_time_s is None else f", travel time {result.travel_time_s:.2f} s"
+    detail = f" ({result.detail})" if result.detail else ""
+    typer.echo(f"{spec.name} seed {episode_seed}: {result.outcome}{detail}{travel}, "
+               f"{result.steps} steps ({result.time_s:.1f} s)")
+    if trace is not None:
+        typer.echo(f"trace: {trace}")
 
 
 if __name__ == "__main__":  # pragma: no cover

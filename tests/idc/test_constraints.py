@@ -49,8 +49,8 @@ def test_overlapping_vehicle_is_penalised_and_slots_are_ordered() -> None:
     near = [EGO[0] + 1.0, EGO[1], 3.0, 0.0, 4.5, 1.8]
     st = scene(EGO, [near], ["vehicle"])
     g = C.safety_constraints(st)
-    assert (g[:4] > 0).all() and (g[4:] < 0).all() and C.penalty(g) > 0
-    assert C.penalty(g) == pytest.approx(np.sum(g[:4] ** 2))
+    assert (g[:4] > 0).any() and (g[4:] < 0).all() and C.penalty(g) > 0
+    assert C.penalty(g) == pytest.approx(np.sum(np.maximum(g[:4], 0.0) ** 2))
     far = [EGO[0] + 20.0, EGO[1], 3.0, 0.0, 4.5, 1.8]
     assert C.penalty(C.safety_constraints(scene(EGO, [far], ["vehicle"]))) == 0.0
     ped = [EGO[0], EGO[1] + 0.5, 1.0, 0.0, 0.5, 0.5]
@@ -61,14 +61,29 @@ def test_overlapping_vehicle_is_penalised_and_slots_are_ordered() -> None:
     assert (g[32:36] > 0).any() and (g[:32] < 0).all() and (g[36:] < 0).all()
 
 
-def test_circles_cover_the_ego() -> None:
+def test_circles_span_the_ego() -> None:
+    """Radius W/2 at ±(L − W)/2: the circles reach both ends of the body and its full width; with
+    the safety margin, even a pedestrian beside the middle of the car binds the constraint."""
     ex, ey, r = C.ego_circles(EGO)
-    assert r == pytest.approx(math.hypot(EGO_LENGTH_M / 4, EGO_WIDTH_M / 2))
+    assert r == pytest.approx(EGO_WIDTH_M / 2)
     c, s = math.cos(EGO[4]), math.sin(EGO[4])
-    for lx in np.linspace(-EGO_LENGTH_M / 2, EGO_LENGTH_M / 2, 21):
+    for lx in (-EGO_LENGTH_M / 2, EGO_LENGTH_M / 2):  # front and rear ends
+        px, py = EGO[0] + c * lx, EGO[1] + s * lx
+        assert np.min(np.hypot(ex - px, ey - py)) <= r + 1e-9
+    for centre in range(2):  # the full width at each circle's centre
         for ly in np.linspace(-EGO_WIDTH_M / 2, EGO_WIDTH_M / 2, 9):
-            px, py = EGO[0] + c * lx - s * ly, EGO[1] + s * lx + c * ly
-            assert np.min(np.hypot(ex - px, ey - py)) <= r + 1e-9
+            px, py = ex[centre] - s * ly, ey[centre] + c * ly
+            assert np.hypot(ex[centre] - px, ey[centre] - py) <= r + 1e-9
+    beside_middle = EGO[:2] + 1.2 * np.array([-s, c])  # a pedestrian 0.2 m off the side
+    st = scene(EGO, [[*beside_middle, 0.0, 0.0, 0.5, 0.5]], ["pedestrian"])
+    assert C.penalty(C.safety_constraints(st)) > 0.0
+
+
+def test_cars_in_neighbouring_lanes_do_not_violate() -> None:
+    """Side by side in 3.5 m lanes, same heading: no penalty (they are not in conflict)."""
+    beside = EGO[:2] + 3.5 * np.array([-math.sin(EGO[4]), math.cos(EGO[4])])
+    st = scene(EGO, [[*beside, 8.0, EGO[4], EGO_LENGTH_M, EGO_WIDTH_M]], ["vehicle"])
+    assert C.penalty(C.safety_constraints(st)) == 0.0
 
 
 def test_margin_and_threshold() -> None:

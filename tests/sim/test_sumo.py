@@ -4,7 +4,6 @@ after the other and are always closed)."""
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -145,27 +144,15 @@ def test_ego_footprint_exact_pose_and_followers_brake(tmp_path: Path) -> None:
         assert 0.5 < gap < 6.0
 
 
-def test_snapshot_rate_with_about_100_participants(tmp_path: Path) -> None:
-    """Measures step + snapshot rate on c_three_lane under the paper's demand (printed)."""
+def test_paper_demand_populates_the_snapshot(tmp_path: Path) -> None:
+    """Under the paper's demand the intersection holds many participants, all with finite poses.
+    (Speed is measured in benchmarks/episode_speed.py, never in a unit test.)"""
     net = catalogue.build("c_three_lane")
     j = read_junction(net)
     routes = write_routes(j, TrafficDemand(), tmp_path / "rate.rou.xml", seed=5,
                           duration_s=200)
     with SumoSession().start(net, [routes], seed=5) as sim:
         sim.step(450)
-        n0 = len(sim.snapshot())
-        steps = 300
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            sim.step()
-            sim.snapshot()
-        dt = time.perf_counter() - t0
-        t1 = time.perf_counter()
-        for _ in range(steps):
-            sim._snapshot = None  # force the snapshot to be rebuilt: measure it alone
-            sim.snapshot()
-        snap_only = (time.perf_counter() - t1) / steps
-    rate = steps / dt
-    print(f"\n{n0} participants: {rate:.0f} step+snapshot/s, snapshot alone {1e3 * snap_only:.3f} ms")
-    assert n0 >= 60
-    assert rate > 300
+        snap = sim.snapshot()
+    assert len(snap) >= 60
+    assert np.isfinite(np.column_stack([snap.x, snap.y, snap.heading, snap.speed])).all()

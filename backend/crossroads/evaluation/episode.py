@@ -52,12 +52,16 @@ def run_episode(
     seed: int,
     *,
     recorder: TraceRecorder | None = None,
+    scenario_name: str = "",
 ) -> EpisodeResult:
-    """Reset ``world`` with ``seed`` and let ``controller`` drive until an outcome."""
+    """Reset ``world`` with ``seed`` and let ``controller`` drive until an outcome.
+
+    With a ``recorder``, every step (and the final state) goes into its trace.
+    """
     observation = world.reset(seed)
     controller.reset(world.candidates)
     if recorder is not None:
-        recorder.start(world, seed)
+        recorder.start(world, seed, scenario=scenario_name)
     events: list[dict[str, Any]] = []
     min_distance = _closest_distance(observation)
     last_mode = last_path = None

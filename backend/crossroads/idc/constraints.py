@@ -1,10 +1,13 @@
 """Safety and road constraints g(s) ≤ 0 and the exterior penalty φ (SPEC §4, paper Sec. IV-C).
 
 Circles **(choice, documented)**: a body of length L and width W centred at (x, y) with heading φ is
-covered by two circles centred at ±L/4 along φ, each of radius r₂ = √((L/4)² + (W/2)²), the
-half-diagonal of its half (so the two circles contain the whole rectangle: disjoint circles imply
-disjoint bodies). The ego (EGO_LENGTH_M × EGO_WIDTH_M) and vehicles and cyclists (their observed
-L, W) use two circles; pedestrians one circle at the centre of radius r₁ = √((L/2)² + (W/2)²).
+represented by two circles of radius W/2 centred at ±(L − W)/2 along φ: they span the body's full
+width and reach its front and rear ends on the axis (the corners stick out by at most
+(√2 − 1)·W/2 ≈ 0.4 m for a car, which the safety margin covers). Circles sized to contain the whole
+rectangle (radius √((L/4)² + (W/2)²) ≈ 1.56 m for a car) were rejected: two such cars in
+neighbouring 3.5 m lanes would violate the constraint while simply driving side by side. The ego
+(EGO_LENGTH_M × EGO_WIDTH_M) and vehicles and cyclists (their observed L, W) use two circles;
+pedestrians one circle at the centre of radius r₁ = √((L/2)² + (W/2)²).
 
 Safety: for every ego circle and every circle of every participant slot,
 ``g = r_ego + r_other + safety_margin_m − ‖c_ego − c_other‖`` (g ≤ 0 safe). Order along the last
@@ -24,7 +27,6 @@ Numpy or torch, batched over leading dimensions, differentiable in torch.
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 from crossroads.arrays import ops
@@ -45,8 +47,8 @@ from crossroads.idc.state import (
 )
 
 SAFETY_MARGIN_M = 0.5  # [m] (choice) added to the sum of the radii
-EGO_CIRCLE_OFFSET_M = EGO_LENGTH_M / 4.0  # [m] ego circle centres at ± this along the heading
-EGO_RADIUS_M = math.hypot(EGO_LENGTH_M / 4.0, EGO_WIDTH_M / 2.0)  # [m]
+EGO_CIRCLE_OFFSET_M = (EGO_LENGTH_M - EGO_WIDTH_M) / 2.0  # [m] circle centres at ± this along φ
+EGO_RADIUS_M = EGO_WIDTH_M / 2.0  # [m]
 LANE_WIDTH_M = 3.5  # [m] (choice) nominal lane width for the road constraint
 ROAD_LATERAL_BOUND_M = LANE_WIDTH_M / 2.0  # [m] (choice) |lateral offset| of each ego circle centre
 _EPS = 1e-12  # inside the square roots, so distances and radii are differentiable at 0
@@ -74,8 +76,8 @@ def safety_constraints(state: Any, safety_margin_m: float = SAFETY_MARGIN_M) -> 
     o = others_block(state)  # [..., 16, 6]
     ox, oy, ophi = o[..., O_PX], o[..., O_PY], o[..., O_PHI]
     length, width = o[..., O_L], o[..., O_W]
-    off = length / 4.0
-    r2 = xp.sqrt(off * off + width * width / 4.0 + _EPS)
+    off = xp.maximum(length - width, 0.0 * length) / 2.0
+    r2 = width / 2.0
     r1 = xp.sqrt(length * length / 4.0 + width * width / 4.0 + _EPS)
     cx, sx = off * xp.cos(ophi), off * xp.sin(ophi)
     n2 = len(TWO_CIRCLE_SLOTS)

@@ -36,6 +36,7 @@ from crossroads.sim.abnormal import AbnormalTraffic
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.ego import clip_action, ego_step
 from crossroads.sim.footprint import overlapping, rectangle_corners
+from crossroads.sim.other import route_curvature
 from crossroads.sim.signals import Light, apply_start, live_light, read_program
 from crossroads.sim.sumo import Snapshot, SumoSession
 from crossroads.sim.traffic import write_routes
@@ -128,6 +129,14 @@ class World:
         self._inside = self.junction.polygon
         shapely.prepare(self._target_exit)
         shapely.prepare(self._inside)
+        # lane centre lines by SUMO lane id, internal lanes through the junction included: the
+        # turning radius R of f_other comes from the lane a participant is on and where on it
+        self.lane_shapes: dict[str, FloatArray] = {
+            lane.id: lane.centerline for lane in self.junction.lanes.values()}
+        for a in self.junction.approaches:
+            for c in a.connections:
+                if c.via_lane and c.via_shape is not None and len(c.via_shape) >= 2:
+                    self.lane_shapes[c.via_lane] = c.via_shape
         self.session = session or SumoSession()
         self._work_dir = Path(tempfile.mkdtemp(prefix="crossroads-world-"))
         self.episode_seed: int | None = None
@@ -300,6 +309,16 @@ class World:
         if self.time_s >= self.config.timeout_s - 1e-9:
             return Outcome("timeout", self.time_s, f"still driving after {self.config.timeout_s:g} s")
         return None
+
+    def curvatures(self, snap: Snapshot, rows: np.ndarray) -> FloatArray:
+        """Signed curvature 1/R [1/m] of the given participants, from their lane and position
+        (0 on lanes the junction does not describe, and for pedestrians)."""
+        kappa = np.zeros(len(rows))
+        for k, row in enumerate(rows):
+            shape = self.lane_shapes.get(str(snap.lane_id[row]))
+            if shape is not None and snap.kind[row] != "pedestrian":
+                kappa[k] = route_curvature(shape, float(snap.x[row]), float(snap.y[row]))
+        return kappa
 
     @property
     def stop_line_crossed_s(self) -> float | None:

@@ -1,0 +1,36 @@
+"""Policies by name: what ``--policy`` accepts on the command line and in the API.
+
+``rule`` is the rule-based baseline (:mod:`crossroads.idc.rule_based`); a path to a trained
+checkpoint (``models/apg.pt``) is the IDC decision module driven by its networks.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from crossroads.idc.controller import Controller
+from crossroads.idc.rule_based import RuleBasedController
+
+BUILTIN_POLICIES = ("rule",)
+
+
+class PolicyError(ValueError):
+    """The policy reference names nothing Crossroads can drive with."""
+
+
+def load_controller(ref: str) -> Controller:
+    """A fresh controller for ``ref``: a built-in name or a checkpoint file."""
+    if ref == "rule":
+        return RuleBasedController()
+    path = Path(ref)
+    if path.suffix == ".pt" or path.exists():
+        if not path.is_file():
+            raise PolicyError(f"policy checkpoint {ref!r} does not exist")
+        try:
+            from crossroads.idc.decision import IdcController  # needs the trained networks
+        except ImportError as exc:
+            raise PolicyError(
+                f"policy {ref!r}: this build cannot load trained checkpoints yet ({exc})") from exc
+        return IdcController.from_checkpoint(path)
+    raise PolicyError(f"unknown policy {ref!r}: use one of {', '.join(BUILTIN_POLICIES)} "
+                      "or the path of a trained checkpoint (.pt)")

@@ -1,0 +1,261 @@
+"""The training configuration of APG / DPG (SPEC §6, paper Algorithm 1 and Sec. V-A).
+
+One typed, frozen dataclass; every field carries its unit and where its default comes from.
+Defaults are the paper's numbers (from :mod:`crossroads.constants`); "(choice)" marks a project
+decision where the paper is silent. :func:`apply_overrides` turns ``key=value`` strings (the command
+line) into a new config and names any unknown key or bad value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import typing
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+from typing import Any, Literal
+
+from crossroads.constants import (
+    ADAM_BETAS,
+    ADVERSARY_UPDATE_INTERVAL,
+    BATCH_SIZE,
+    HIDDEN_LAYERS,
+    HIDDEN_UNITS,
+    HORIZON_T,
+    LOG_INTERVAL,
+    PENALTY_RHO,
+    POLICY_LR,
+    TAR_RUNS,
+    TAR_STEPS,
+    TOTAL_ITERATIONS,
+    VALUE_LR,
+)
+from crossroads.network.model import TASKS
+
+Algo = Literal["apg", "dpg"]
+
+DEFAULT_INTERSECTIONS: tuple[str, ...] = (
+    "a_single_lane", "b_two_lane", "c_three_lane",
+    "d_irregular_skewed", "e_irregular_oblique", "f_irregular_wide",
+)  # the paper's six (Fig. 2 (a)-(f)), as catalogued under scenarios/intersections
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything one training run needs. Frozen: a run's config never changes once started."""
+
+    # --- algorithm (SPEC §6) ---------------------------------------------------------------------
+    algo: Algo = "apg"
+    """"apg": driving policy vs. adversary (min_θ max_φ J_π); "dpg": the baseline, ξ ≡ 0, no adversary."""
+    iterations: int = TOTAL_ITERATIONS
+    """Total optimisation iterations k (paper: 200 000). Also the period of the cosine annealing."""
+    batch_size: int = BATCH_SIZE
+    """Initial states per iteration (paper: 256)."""
+    horizon: int = HORIZON_T
+    """Prediction horizon T [steps of 0.1 s] of the differentiable model (paper: 25)."""
+    rho: float = PENALTY_RHO
+    """Penalty factor ρ of J_π = J_track + ρ J_safe (paper: 15)."""
+    adversary_interval: int = ADVERSARY_UPDATE_INTERVAL
+    """m: the adversary is updated at iterations k with k % m == 0 (paper: 5)."""
+    sample_actions: bool = True
+    """Training rollouts draw u ~ π_θ and ξ ~ π_φ by reparameterisation (the paper's u ~ π_θ(s));
+    False uses the tanh-squashed means (deterministic rollouts)."""
+
+    # --- networks (Sec. V-A) ---------------------------------------------------------------------
+    hidden_layers: int = HIDDEN_LAYERS
+    """Hidden layers of every MLP (paper: 5)."""
+    hidden_units: int = HIDDEN_UNITS
+    """Units per hidden layer (paper: 256). Tests use 32."""
+
+    # --- optimisation (Table "Training hyperparameters") -------------------------------------------
+    policy_lr: tuple[float, float] = POLICY_LR
+    """Driving policy learning rate, cosine annealed start → end over `iterations` (paper: 1e-4 → 2e-6)."""
+    value_lr: tuple[float, float] = VALUE_LR
+    """Value network learning rate, cosine annealed start → end (paper: 3e-4 → 1e-6)."""
+    adversary_lr: tuple[float, float] = POLICY_LR
+    """(choice) Adversary learning rate, start → end: the paper gives none; it "employs similar
+    architecture" to the driving policy, so it gets the policy's schedule (1e-4 → 2e-6). Its
+    scheduler steps every iteration, whether or not the adversary is updated then."""
+    adam_betas: tuple[float, float] = ADAM_BETAS
+    """Adam (β1, β2) of all three optimisers (paper: 0.9, 0.999)."""
+    max_grad_norm: float | None = None
+    """(choice) Clip each network's gradient to this global L2 norm; None (paper): no clipping."""
+
+    # --- sampling (Algorithm 1 "Sampling") ---------------------------------------------------------
+    intersections: tuple[str, ...] = DEFAULT_INTERSECTIONS
+    """Catalogue names (or .yaml paths) of the intersections the workers sample on (default: all six)."""
+    tasks: tuple[str, ...] = TASKS
+    """Ego tasks sampled: left, straight, right (default all three)."""
+    workers: int = 4
+    """Sampling workers (paper: 10). Processes (multiprocessing spawn, one libsumo per process), or Ray
+    actors with `ray_address`. 0 = sample inline in the learner's process (tests, debugging)."""
+    ray_address: str | None = None
+    """Address of a Ray cluster ("auto", "ray://host:10001"); None: local processes."""
+    buffer_size: int = 100_000
+    """(choice) Ring buffer capacity [states]; the oldest states are overwritten."""
+    samples_per_iteration: float = 128.0
+    """(choice) Sampling rounds are collected so that, on average, this many new states enter the
+    buffer per iteration (replay ratio = batch_size / this = 2 by default)."""
+    learning_starts: int = 1_000
+    """(choice) States in the buffer before the first update (the learner waits for them)."""
+    rule_rounds: int = 20
+    """(choice) The first rounds drive with the rule-based controller (idc.rule_based): an untrained
+    policy leaves the road within a few steps and would only show states near the episode starts.
+    Later rounds drive with the current policy's mean action plus exploration noise."""
+    explore_std: float = 0.1
+    """(choice) Exploration noise of the sampling policy: Gaussian, this fraction of each action's
+    half range (Δδ: 0.04 rad/s, Δa: 0.45 m/s³), clipped to the action ranges."""
+    max_episode_steps: int = 600
+    """Steps [0.1 s] of one sampling episode at most (an episode also ends on its outcome)."""
+    warmup_s: float = 30.0
+    """(choice) [s] SUMO warm-up before the ego enters, in sampling and TAR episodes."""
+    start_distance_m: tuple[float, float] = (5.0, 60.0)
+    """(choice) [m] the ego's start before the stop line is drawn uniformly in this range."""
+    start_speed_mps: tuple[float, float] = (0.0, 8.33)
+    """(choice) [m/s] the ego's start speed is drawn uniformly in this range (≤ 0.8·V_limit)."""
+
+    # --- evaluation and logging (Sec. V-A, Fig. 4-5) ---------------------------------------------------
+    log_every: int = LOG_INTERVAL
+    """Iterations between metric rows (paper: 1000); each row also evaluates TAR."""
+    tar_runs: int = TAR_RUNS
+    """Real runs in the SUMO world per TAR evaluation (paper: 10)."""
+    tar_steps: int = TAR_STEPS
+    """Steps [0.1 s] summed per TAR run (paper: 120)."""
+    tar_seed: int = 1_000_000
+    """Run r of every TAR evaluation uses world seed tar_seed + r (a fixed set, the same each time)."""
+    checkpoint_every: int = 10_000
+    """Iterations between checkpoints (one is also written at the end)."""
+
+    # --- run -----------------------------------------------------------------------------------------
+    seed: int = 0
+    """The run's seed: python, numpy, torch, the buffer's draws and every sampling world derive from it."""
+    device: str = "cpu"
+    """torch device of the learner ("cpu", "cuda"); workers always act on the CPU."""
+    torch_threads: int = 0
+    """torch intra-op threads of the learner; 0 leaves torch's default."""
+    out: Path = Path("runs")
+    """Directory under which the run directory `<algo>-seed<seed>` is created."""
+    run_name: str | None = None
+    """Name of the run directory; None: `<algo>-seed<seed>`."""
+    progress: bool = True
+    """Show a progress bar with ETA on stderr."""
+    tensorboard: bool = True
+    """Also write TensorBoard events when torch.utils.tensorboard can be imported."""
+
+    def __post_init__(self) -> None:
+        if self.algo not in ("apg", "dpg"):
+            raise ValueError(f"algo: {self.algo!r} is neither 'apg' nor 'dpg'")
+        for name in ("iterations", "batch_size", "horizon", "adversary_interval", "hidden_layers",
+                     "hidden_units", "buffer_size", "max_episode_steps", "log_every", "checkpoint_every"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name}: must be ≥ 1, got {getattr(self, name)}")
+        if self.workers < 0:
+            raise ValueError(f"workers: must be ≥ 0, got {self.workers}")
+        if self.samples_per_iteration <= 0:
+            raise ValueError("samples_per_iteration: must be > 0")
+        if self.learning_starts < self.batch_size:
+            object.__setattr__(self, "learning_starts", self.batch_size)
+        bad = [t for t in self.tasks if t not in TASKS]
+        if bad or not self.tasks:
+            raise ValueError(f"tasks: {bad or '()'} not among {TASKS}")
+        if not self.intersections:
+            raise ValueError("intersections: at least one is needed")
+
+    @property
+    def directory(self) -> Path:
+        """The run directory."""
+        return Path(self.out) / (self.run_name or f"{self.algo}-seed{self.seed}")
+
+    def to_json(self) -> dict[str, Any]:
+        out = dataclasses.asdict(self)
+        out["out"] = str(self.out)
+        return out
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any]) -> TrainConfig:
+        return apply_overrides(cls(), {k: v for k, v in data.items()})
+
+
+def _coerce(name: str, hint: Any, value: Any) -> Any:
+    """``value`` (a string from the command line, or JSON data) as the type ``hint`` of field ``name``."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if isinstance(value, str) and hint is not str and origin is not Literal:
+        text = value.strip()
+        if text.lower() in ("none", "null") and type(None) in args:
+            return None
+        if origin is tuple:
+            value = [v for v in text.replace(",", " ").split() if v]
+        elif hint is bool:
+            if text.lower() not in ("1", "0", "true", "false", "yes", "no"):
+                raise ValueError(f"{name}: {value!r} is not a boolean")
+            return text.lower() in ("1", "true", "yes")
+    if origin is tuple:
+        items = list(value)
+        inner = args[0] if len(args) == 2 and args[1] is Ellipsis else None
+        types = [inner] * len(items) if inner else list(args)
+        if len(types) != len(items):
+            raise ValueError(f"{name}: expected {len(types)} values, got {len(items)}")
+        return tuple(t(v) for t, v in zip(types, items))
+    if origin is Literal:
+        if value not in args:
+            raise ValueError(f"{name}: {value!r} not among {args}")
+        return value
+    if type(None) in args:  # Optional[X]
+        if value is None:
+            return None
+        inner = next(a for a in args if a is not type(None))
+        return _coerce(name, inner, value)
+    if hint is Path:
+        return Path(value)
+    if hint in (int, float, str, bool):
+        return hint(value)
+    return value
+
+
+def apply_overrides(config: TrainConfig, overrides: dict[str, Any]) -> TrainConfig:
+    """A copy of ``config`` with ``{field: value}`` applied (strings are parsed by the field's type)."""
+    hints = typing.get_type_hints(TrainConfig, globalns={**globals(), "Path": Path})
+    known = {f.name for f in fields(TrainConfig)}
+    changes = {}
+    for key, value in overrides.items():
+        name = key.replace("-", "_")
+        if name not in known:
+            raise ValueError(f"unknown training option {key!r}; known: {', '.join(sorted(known))}")
+        try:
+            changes[name] = _coerce(name, hints[name], value)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"{name}: bad value {value!r} ({exc})") from None
+    return replace(config, **changes)
+
+
+def parse_overrides(items: list[str]) -> dict[str, str]:
+    """``["batch_size=8", "tasks=left,right"]`` → ``{"batch_size": "8", "tasks": "left,right"}``."""
+    out = {}
+    for item in items:
+        if "=" not in item:
+            raise ValueError(f"option {item!r}: expected KEY=VALUE")
+        key, value = item.split("=", 1)
+        out[key.strip()] = value
+    return out
+
+
+def save_config(config: TrainConfig, path: Path) -> None:
+    path.write_text(json.dumps(config.to_json(), indent=2) + "\n")
+
+
+def field_docs() -> dict[str, str]:
+    """Each field's docstring (for ``--help`` listings)."""
+    import ast
+    import inspect
+
+    tree = ast.parse(inspect.getsource(TrainConfig))
+    docs: dict[str, str] = {}
+    body = tree.body[0].body  # type: ignore[attr-defined]
+    for a, b in zip(body, body[1:]):
+        if isinstance(a, ast.AnnAssign) and isinstance(b, ast.Expr) and isinstance(b.value, ast.Constant):
+            docs[a.target.id] = " ".join(str(b.value.value).split())  # type: ignore[union-attr]
+    return docs
+
+
+__all__ = ["Algo", "DEFAULT_INTERSECTIONS", "TrainConfig", "apply_overrides", "field_docs",
+           "parse_overrides", "save_config"]
