@@ -101,9 +101,8 @@ def test_snapshot_fields_and_centre_convention(net_and_routes) -> None:
             assert (x, y) == pytest.approx((s.x[i], s.y[i]), abs=1e-6)
             assert h == pytest.approx(s.heading[i], abs=1e-9)
             assert len(s.route[i]) >= 2
-            assert s.edge_id[i].startswith(":") or s.edge_id[i] == s.route[i][s.route_index[i]]
-            assert s.route_index[i] >= 0
-        assert np.all(s.route_index[s.kind == "pedestrian"] == -1)
+            assert s.edge_id[i].startswith(":") or s.edge_id[i] in s.route[i]
+            assert s.lane_id[i].startswith(s.edge_id[i] + "_")
         assert np.all(np.abs(s.heading) <= math.pi)
 
 

@@ -88,9 +88,14 @@ def covered(
 ) -> np.ndarray:
     """Boolean mask: which points (xs, ys) [m] any of the sensors covers (the union of sectors)."""
     xs = np.asarray(xs, dtype=np.float64)
+    ys = np.asarray(ys, dtype=np.float64)
     mask = np.zeros(xs.shape, dtype=bool)
     for sensor in sensors:
-        mask |= sensor.covers(float(ego_x), float(ego_y), float(ego_heading), xs, ys)
+        # only the points no earlier sensor covers (the lidar alone covers most of them)
+        rest = np.flatnonzero(~mask)
+        if len(rest) == 0:
+            break
+        mask[rest] = sensor.covers(float(ego_x), float(ego_y), float(ego_heading), xs[rest], ys[rest])
     return mask
 
 

@@ -63,12 +63,9 @@ KEEP_ROUTE_EXACT = KEEP_ROUTE_ON_ROUTE | KEEP_ROUTE_OFF_ROAD
 _INVALID = libsumo.INVALID_DOUBLE_VALUE
 # Subscribed every step; the edge id is derived from the lane id when asked (SUMO lane ids are
 # "<edge>_<index>"), which keeps the per-step transfer small.
-_VEH_VARS = (
-    libsumo.VAR_POSITION, libsumo.VAR_ANGLE, libsumo.VAR_SPEED,
-    libsumo.VAR_LANE_ID, libsumo.VAR_ROUTE_INDEX,
-)
-_PER_VARS = (libsumo.VAR_POSITION, libsumo.VAR_ANGLE, libsumo.VAR_SPEED, libsumo.VAR_LANE_ID)
-_POS, _ANG, _SPD, _LANE, _RIDX = _VEH_VARS
+_VEH_VARS = (libsumo.VAR_POSITION, libsumo.VAR_ANGLE, libsumo.VAR_SPEED, libsumo.VAR_LANE_ID)
+_PER_VARS = _VEH_VARS
+_POS, _ANG, _SPD, _LANE = _VEH_VARS
 
 
 class SumoError(RuntimeError):
@@ -138,7 +135,7 @@ class Snapshot:
     ``x``, ``y`` [m] are footprint centres; ``heading`` [rad] CCW from +x; ``speed`` [m/s];
     ``length``/``width`` [m]. ``lane_id``/``edge_id`` are SUMO's ("" when off the network).
     ``route`` holds each participant's edges (vehicles: its route; pedestrians: the edges of the
-    current walk) and ``route_index`` where it is on them (-1 for pedestrians).
+    current walk).
     """
 
     time_s: float
@@ -151,7 +148,6 @@ class Snapshot:
     length: NDArray[np.float64]
     width: NDArray[np.float64]
     lane_id: NDArray[np.str_]
-    route_index: NDArray[np.int64]
     route: tuple[tuple[str, ...], ...]
 
     def __len__(self) -> int:
@@ -381,45 +377,40 @@ class SumoSession:
             return self._snapshot
         vres = libsumo.vehicle.getAllSubscriptionResults()
         pres = libsumo.person.getAllSubscriptionResults()
-        ids: list[str] = []
-        statics: list[_Static] = []
-        rows: list[tuple[float, float, float, float]] = []
-        lanes: list[str] = []
-        ridx: list[int] = []
+        # only ids known to be alive (old results survive in libsumo, see the module docstring)
+        vehicles = [(pid, r) for pid in self._vehicles if (r := vres.get(pid)) is not None]
+        persons = [(pid, r) for pid in self._persons if (r := pres.get(pid)) is not None]
+        pairs = vehicles + persons
+        n_vehicles = len(vehicles)
+        n = len(pairs)
+        pos = np.array([r[_POS] for _, r in pairs], dtype=np.float64).reshape(n, 2)
+        angle = np.array([r[_ANG] for _, r in pairs], dtype=np.float64)
+        speed = np.array([r[_SPD] for _, r in pairs], dtype=np.float64)
+        # known but not on the network (e.g. waiting to be inserted): left out
+        on_net = pos[:, 0] != _INVALID
         cache = self._static
-        for alive, results, is_person in ((self._vehicles, vres, False), (self._persons, pres, True)):
-            for pid in alive:
-                r = results.get(pid)
-                if r is None:
-                    continue
-                pos = r[_POS]
-                if pos[0] == _INVALID:  # known but not on the network (e.g. waiting to insert)
-                    continue
-                ids.append(pid)
-                st = cache.get(pid)
-                statics.append(st if st is not None else self._static_of(pid, is_person))
-                rows.append((pos[0], pos[1], r[_ANG], r[_SPD]))
-                lanes.append(r[_LANE])
-                ridx.append(-1 if is_person else r[_RIDX])
-        n = len(ids)
-        arr = np.array(rows, dtype=np.float64).reshape(n, 4)
-        length = np.array([s.length_m for s in statics], dtype=np.float64)
-        heading = np.radians(90.0 - arr[:, 2])
+        statics = [cache.get(pid) or self._static_of(pid, k >= n_vehicles)
+                   for k, (pid, _) in enumerate(pairs)]
+        length = np.array([st.length_m for st in statics], dtype=np.float64)
+        width = np.array([st.width_m for st in statics], dtype=np.float64)
+        heading = np.radians(90.0 - angle)
         heading = (heading + np.pi) % (2.0 * np.pi) - np.pi
         half = 0.5 * length
+        keep = np.flatnonzero(on_net) if not on_net.all() else slice(None)
+        kept_pairs = pairs if isinstance(keep, slice) else [pairs[k] for k in keep]
+        kept_statics = statics if isinstance(keep, slice) else [statics[k] for k in keep]
         snap = Snapshot(
             time_s=self.time_s,
-            ids=np.array(ids, dtype=np.str_),
-            kind=np.array([s.kind for s in statics], dtype="<U10"),
-            x=arr[:, 0] - half * np.cos(heading),
-            y=arr[:, 1] - half * np.sin(heading),
-            heading=heading,
-            speed=arr[:, 3].copy(),
-            length=length,
-            width=np.array([s.width_m for s in statics], dtype=np.float64),
-            lane_id=np.array(lanes, dtype=np.str_),
-            route_index=np.array(ridx, dtype=np.int64),
-            route=tuple(s.route for s in statics),
+            ids=np.array([pid for pid, _ in kept_pairs], dtype=np.str_),
+            kind=np.array([st.kind for st in kept_statics], dtype="<U10"),
+            x=(pos[:, 0] - half * np.cos(heading))[keep],
+            y=(pos[:, 1] - half * np.sin(heading))[keep],
+            heading=heading[keep],
+            speed=speed[keep],
+            length=length[keep],
+            width=width[keep],
+            lane_id=np.array([r[_LANE] for _, r in kept_pairs], dtype=np.str_),
+            route=tuple(st.route for st in kept_statics),
         )
         self._snapshot = snap
         return snap

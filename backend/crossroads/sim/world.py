@@ -34,7 +34,7 @@ from crossroads.perception.sensors import DEFAULT_SENSORS, covered
 from crossroads.planning import CandidatePath, plan_candidates
 from crossroads.sim.abnormal import AbnormalTraffic
 from crossroads.sim.config import WorldConfig
-from crossroads.sim.ego import clip_action, ego_step
+from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import overlapping, rectangle_corners
 from crossroads.sim.other import route_curvature
 from crossroads.sim.signals import Light, apply_start, live_light, read_program
@@ -194,7 +194,7 @@ class World:
         self.session.move_ego(EGO_ID, x, y, heading, speed)
         self.session.step()
         self.time_s = 0.0
-        self._stopped_since: dict[str, float] = {}
+        self._front_stopped: tuple[str, float] | None = None  # (id, since [s])
         self._stop_line_crossed_s: float | None = None
         self._abnormal_ids = self.abnormal.update(self.session)
         self.outcome: Outcome | None = None
@@ -226,7 +226,7 @@ class World:
         if self.outcome is not None:
             raise RuntimeError("the episode has ended; call reset(seed) first")
         previous_distance = self._distance_to_stop_line(self.ego)
-        self.ego = ego_step(self.ego, clip_action(np.asarray(action, dtype=np.float64)))
+        self.ego = ego_step(self.ego, np.asarray(action, dtype=np.float64))  # clips the action
         x, y, vx, _, heading = self.ego[:5]
         self.session.move_ego(EGO_ID, float(x), float(y), float(heading), float(vx))
         self.session.step()
@@ -246,23 +246,25 @@ class World:
         return LightView(at.light, at.remaining_s, self.session.tl_state(self.program.tl_id))
 
     def _front_vehicle_stopped_s(self, snap: Snapshot) -> float:
-        """How long the nearest vehicle ahead of the ego, in its corridor, has been standing."""
-        if len(snap) == 0:
+        """How long the nearest vehicle ahead of the ego, in its corridor, has been standing
+        (SPEC §7 congestion check; 0 when there is none or it moves)."""
+        front_id = None
+        if len(snap):
+            c, s = math.cos(self.ego[4]), math.sin(self.ego[4])
+            dx, dy = snap.x - self.ego[0], snap.y - self.ego[1]
+            ahead, lateral = dx * c + dy * s, -dx * s + dy * c
+            front = (snap.kind != "pedestrian") & (ahead > 0) & (ahead < FRONT_LOOKAHEAD_M) & (
+                np.abs(lateral) < FRONT_CORRIDOR_HALF_WIDTH_M)
+            if front.any():
+                row = np.flatnonzero(front)[np.argmin(ahead[front])]
+                if snap.speed[row] < STOPPED_SPEED_MPS:
+                    front_id = str(snap.ids[row])
+        if front_id is None:
+            self._front_stopped = None
             return 0.0
-        c, s = math.cos(self.ego[4]), math.sin(self.ego[4])
-        dx, dy = snap.x - self.ego[0], snap.y - self.ego[1]
-        ahead, lateral = dx * c + dy * s, -dx * s + dy * c
-        front = (snap.kind != "pedestrian") & (ahead > 0) & (ahead < FRONT_LOOKAHEAD_M) & (
-            np.abs(lateral) < FRONT_CORRIDOR_HALF_WIDTH_M)
-        stopped_now = {str(i) for i in snap.ids[snap.speed < STOPPED_SPEED_MPS]}
-        self._stopped_since = {pid: t for pid, t in self._stopped_since.items() if pid in stopped_now}
-        for pid in stopped_now:
-            self._stopped_since.setdefault(pid, self.time_s)
-        if not front.any():
-            return 0.0
-        nearest = str(snap.ids[np.flatnonzero(front)[np.argmin(ahead[front])]])
-        since = self._stopped_since.get(nearest)
-        return 0.0 if since is None else self.time_s - since
+        if self._front_stopped is None or self._front_stopped[0] != front_id:
+            self._front_stopped = (front_id, self.time_s)
+        return self.time_s - self._front_stopped[1]
 
     def _perceive(self, snap: Snapshot) -> Perceived:
         mask = covered(self.ego[0], self.ego[1], self.ego[4], snap.x, snap.y, DEFAULT_SENSORS)

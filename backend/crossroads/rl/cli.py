@@ -1,0 +1,127 @@
+"""``crossroads train``: the typer sub-app of training (mounted by the main CLI as ``train``).
+
+    crossroads train --algo apg|dpg [--iterations N] [--workers K] [--ray ADDRESS] [--out DIR]
+                     [--seed S] [--resume] [--set KEY=VALUE ...]
+    crossroads train plot RUN_DIR [RUN_DIR ...] -o OUT.png
+    crossroads train options          # every TrainConfig field with its meaning
+
+``--set`` reaches any :class:`~crossroads.rl.config.TrainConfig` field (``--set batch_size=8
+--set tasks=left,straight``). Imports of torch happen only when a command runs.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+app = typer.Typer(help="Train the IDC networks by APG (adversarial) or DPG (baseline).",
+                  invoke_without_command=True, pretty_exceptions_enable=False)
+
+
+@app.callback()
+def train_command(
+    ctx: typer.Context,
+    algo: Annotated[str, typer.Option(help="apg (with adversary) or dpg (ξ ≡ 0)")] = "apg",
+    iterations: Annotated[Optional[int], typer.Option(help="iterations (paper: 200000)")] = None,
+    workers: Annotated[Optional[int], typer.Option(help="sampling processes (0: in-process)")] = None,
+    ray: Annotated[Optional[str], typer.Option("--ray", help="Ray cluster address for the workers")] = None,
+    out: Annotated[Optional[Path], typer.Option(help="parent directory of the run directory")] = None,
+    seed: Annotated[Optional[int], typer.Option(help="the run's seed")] = None,
+    resume: Annotated[bool, typer.Option(help="continue the run's newest checkpoint")] = False,
+    set_: Annotated[Optional[list[str]], typer.Option("--set", help="KEY=VALUE of any TrainConfig field")] = None,
+) -> None:
+    """Train (without a sub-command)."""
+    if ctx.invoked_subcommand is not None:
+        return
+    from crossroads.rl.config import TrainConfig, apply_overrides, parse_overrides
+    from crossroads.rl.train import RunExistsError, train
+
+    overrides: dict[str, object] = {"algo": algo}
+    for key, value in (("iterations", iterations), ("workers", workers), ("ray_address", ray),
+                       ("out", out), ("seed", seed)):
+        if value is not None:
+            overrides[key] = value
+    try:
+        overrides.update(parse_overrides(set_ or []))
+        config = apply_overrides(TrainConfig(), overrides)
+        run_dir = train(config, resume=resume)
+    except (ValueError, RunExistsError, FileNotFoundError) as exc:
+        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
+        raise typer.Exit(code=2) from None
+    typer.echo(str(run_dir))
+
+
+@app.command("options")
+def options_command() -> None:
+    """List every training option with its default and meaning."""
+    import dataclasses
+
+    from crossroads.rl.config import TrainConfig, field_docs
+
+    docs = field_docs()
+    for f in dataclasses.fields(TrainConfig):
+        typer.echo(f"{f.name} = {getattr(TrainConfig(), f.name)!r}\n    {docs.get(f.name, '')}")
+
+
+PANELS: tuple[tuple[str, str], ...] = (
+    ("losses/J_pi", "J_π (policy cost)"), ("losses/J_v", "J_v (value loss)"),
+    ("losses/J_track", "J_track"), ("losses/J_safe", "J_safe"), ("charts/TAR", "TAR"),
+)
+
+
+def plot_runs(run_dirs: list[Path], output: Path) -> Path:
+    """Curves like the paper's Fig. 4-5 (one line per run, TAR with a ±std band) into ``output``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from crossroads.rl.logging import read_metrics
+
+    fig, axes = plt.subplots(2, 3, figsize=(13, 7))
+    flat = axes.ravel()
+    for run in run_dirs:
+        m = read_metrics(run)
+        label = Path(run).name
+        for ax, (key, title) in zip(flat, PANELS):
+            ax.plot(m["iteration"], m[key], label=label)
+            if key == "charts/TAR":
+                lo = [a - s for a, s in zip(m[key], m["charts/TAR_std"])]
+                hi = [a + s for a, s in zip(m[key], m["charts/TAR_std"])]
+                ax.fill_between(m["iteration"], lo, hi, alpha=0.2)
+            ax.set_title(title)
+            ax.set_xlabel("iteration")
+            if key != "charts/TAR" and all(v > 0 for v in m[key] if not math.isnan(v)):
+                ax.set_yscale("log")
+        flat[5].plot(m["iteration"], m["charts/lr_policy"], label=f"{label} policy")
+        flat[5].plot(m["iteration"], m["charts/lr_value"], label=f"{label} value")
+    flat[5].set_title("learning rates")
+    flat[5].set_xlabel("iteration")
+    for ax in flat:
+        ax.grid(alpha=0.3)
+        if ax.lines:
+            ax.legend(fontsize=7)
+    fig.tight_layout()
+    output = Path(output)
+    output.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(output, dpi=120)
+    plt.close(fig)
+    return output
+
+
+@app.command("plot")
+def plot_command(
+    run_dirs: Annotated[list[Path], typer.Argument(help="run directories (each with metrics.csv)")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="image file to write (.png, .pdf)")],
+) -> None:
+    """Training curves (J_π, J_v, J_track, J_safe, TAR) of one or more runs."""
+    for run in run_dirs:
+        if not (Path(run) / "metrics.csv").is_file():
+            typer.secho(f"error: {run} has no metrics.csv", err=True, fg=typer.colors.RED)
+            raise typer.Exit(code=2)
+    typer.echo(str(plot_runs(list(run_dirs), output)))
+
+

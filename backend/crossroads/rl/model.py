@@ -1,0 +1,104 @@
+"""The differentiable IDC model: T-step rollouts of f = (f_ego, f_other) in torch (SPEC §5-§6).
+
+From a batch of initial states (:class:`~crossroads.rl.buffer.StateBatch`: ego 8, others 16×6, the
+curvature 1/R of each other's route, a path index into padded candidate paths, the speed mode) the
+model rolls out T steps::
+
+    s_0 = [ego_0, x_track(ego_0, τ, mode), others_0]
+    u_i = π_θ(s_i)          ξ_i = π_φ(s_i)  (APG)  or  None (DPG: ξ ≡ 0)
+    l_i = utility(s_i, u_i)
+    ego_{i+1} = ego_step(ego_i, u_i)        others_{i+1} = other_step(others_i, κ, ξ_i)
+    s_{i+1} = [ego_{i+1}, tracking_error(ego_{i+1}, ref(ego_{i+1}, τ, mode)), others_{i+1}]
+    φ_{i+1} = penalty(safety_constraints(s_{i+1}) ∪ road_constraints(s_{i+1}, ref))
+
+and returns per sample J_track = Σ_{i<T} l_i and J_safe = Σ_{i<T} φ_{i+1}. Gradients flow through
+the dynamics into u (θ) and ξ (φ); the reference point is data (``reference_points_torch`` computes
+it without gradient, the ego's error against it is differentiable). **(choice)** κ of every
+participant is held at its initial value over the horizon (the model has no routes).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import torch
+from torch import Tensor
+
+from crossroads.idc.constraints import penalty, road_constraints, safety_constraints
+from crossroads.idc.state import N_OTHERS, PathTensors, reference_points_torch, tracking_error
+from crossroads.idc.utility import utility
+from crossroads.rl.buffer import StateBatch
+from crossroads.sim.ego import ego_step
+from crossroads.sim.other import other_step
+
+ActionFn = Callable[[Tensor, int], Tensor]  # (s_i [B, 108], i) → u_i [B, 2]
+XiFn = Callable[[Tensor, int], Tensor]  # (s_i [B, 108], i) → ξ_i [B, 16, 4]
+
+
+class Rollout(NamedTuple):
+    """The model's costs of a batch, per sample."""
+
+    j_track: Tensor  # (B,) Σ l
+    j_safe: Tensor  # (B,) Σ φ (unweighted; J_π = J_track + ρ J_safe)
+    s0: Tensor  # (B, 108) the initial states (input of v_w)
+
+
+def assemble(ego: Tensor, track: Tensor, others: Tensor) -> Tensor:
+    """s [B, 108] from ego [B, 8], x_track [B, 4], others [B, 16, 6]."""
+    return torch.cat([ego, track, others.reshape(others.shape[0], -1)], dim=-1)
+
+
+class IDCModel:
+    """The model f over a fixed set of candidate paths (padded, see ``idc.state.path_tensors``)."""
+
+    def __init__(self, paths: PathTensors) -> None:
+        self.paths = paths
+
+    def track(self, ego: Tensor, path: Tensor, stop: Tensor) -> tuple[Tensor, Tensor]:
+        """(x_track [B, 4], road constraints g [B, 4]) of ``ego`` against its path and mode."""
+        ref = reference_points_torch(self.paths, ego[:, :2], path, stop)
+        return tracking_error(ego, ref.x, ref.y, ref.heading, ref.v), ref
+
+    def initial_states(self, batch: StateBatch) -> Tensor:
+        """s_0 [B, 108] of a batch."""
+        x_track, _ = self.track(batch.ego, batch.path, batch.stop)
+        return assemble(batch.ego, x_track, batch.others)
+
+    def rollout(self, batch: StateBatch, act: ActionFn, disturb: XiFn | None, horizon: int) -> Rollout:
+        """Roll the batch out ``horizon`` steps with ``act`` (and ``disturb``, or ξ ≡ 0)."""
+        ego, others, kappa = batch.ego, batch.others, batch.kappa
+        s = s0 = self.initial_states(batch)
+        j_track = torch.zeros(ego.shape[0], dtype=ego.dtype, device=ego.device)
+        j_safe = torch.zeros_like(j_track)
+        for i in range(horizon):
+            u = act(s, i)
+            xi = disturb(s, i) if disturb is not None else None
+            l, _ = utility(s, u)
+            ego = ego_step(ego, u)
+            others = other_step(others, kappa, xi)
+            x_track, ref = self.track(ego, batch.path, batch.stop)
+            s = assemble(ego, x_track, others)
+            g = torch.cat([safety_constraints(s), road_constraints(s, ref.x, ref.y, ref.heading)], dim=-1)
+            j_track = j_track + l
+            j_safe = j_safe + penalty(g)
+        return Rollout(j_track, j_safe, s0)
+
+
+def policy_fns(policy: torch.nn.Module, adversary: torch.nn.Module | None, sample: bool
+               ) -> tuple[ActionFn, XiFn | None]:
+    """The rollout's ``act`` / ``disturb`` from the networks: reparameterised draws when ``sample``,
+    the squashed means otherwise. ``adversary=None`` (DPG) gives ξ ≡ 0."""
+
+    def act(s: Tensor, _: int) -> Tensor:
+        return policy.sample(s) if sample else policy.mean_action(s)  # type: ignore[operator]
+
+    if adversary is None:
+        return act, None
+
+    def disturb(s: Tensor, _: int) -> Tensor:
+        xi = adversary.sample(s) if sample else adversary.mean_action(s)  # type: ignore[operator]
+        assert xi.shape[-2:] == (N_OTHERS, 4)
+        return xi
+
+    return act, disturb

@@ -1,0 +1,76 @@
+"""π_θ, π_φ, v_w: outputs within their ranges, whatever the state."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
+from crossroads.constants import JERK_MAX, STATE_DIM, STEER_RATE_MAX, XI_RANGES
+from crossroads.rl.networks import XI_KEYS, Adversary, DrivingPolicy, ValueNet, make_networks
+
+torch.manual_seed(0)
+POLICY = DrivingPolicy(2, 32)
+ADVERSARY = Adversary(2, 32)
+VALUE = ValueNet(2, 32)
+# push the pre-squash outputs to saturation too: big output weights
+with torch.no_grad():
+    BIG = Adversary(2, 32)
+    BIG.net[-1].weight.mul_(1e3)
+
+states = arrays(np.float64, (4, STATE_DIM), elements=st.floats(-1e3, 1e3, allow_nan=False, width=32))
+
+
+@settings(max_examples=40, deadline=None)
+@given(states)
+def test_actions_within_their_ranges(s: np.ndarray) -> None:
+    x = torch.as_tensor(s, dtype=torch.float32)
+    for u in (POLICY.mean_action(x), POLICY.sample(x)):
+        assert u.shape == (4, 2)
+        assert torch.all(u[:, 0].abs() <= STEER_RATE_MAX) and torch.all(u[:, 1].abs() <= JERK_MAX)
+
+
+@settings(max_examples=40, deadline=None)
+@given(states)
+def test_xi_within_its_ranges(s: np.ndarray) -> None:
+    x = torch.as_tensor(s, dtype=torch.float32)
+    for net in (ADVERSARY, BIG):
+        for xi in (net.mean_action(x), net.sample(x)):
+            assert xi.shape == (4, 16, 4)
+            for k, key in enumerate(XI_KEYS):
+                lo, hi = XI_RANGES[key]
+                assert torch.all(xi[..., k] >= lo - 1e-7) and torch.all(xi[..., k] <= hi + 1e-7), key
+
+
+def test_xi_v_range_is_asymmetric_and_fully_reachable() -> None:
+    x = torch.zeros(1, STATE_DIM)
+    assert torch.allclose(ADVERSARY.squash(torch.full((1, 64), -50.0))[0, 2], torch.tensor(-0.075))
+    assert torch.allclose(ADVERSARY.squash(torch.full((1, 64), 50.0))[0, 2], torch.tensor(0.225))
+    assert torch.allclose(ADVERSARY.squash(torch.zeros(1, 64))[0, 2], torch.tensor(0.075))
+    assert ADVERSARY.mean_action(x).shape == (1, 16, 4)
+
+
+@settings(max_examples=20, deadline=None)
+@given(states)
+def test_value_is_non_negative(s: np.ndarray) -> None:
+    assert torch.all(VALUE(torch.as_tensor(s, dtype=torch.float32)) >= 0.0)
+
+
+def test_mean_action_is_deterministic_and_sampling_reparameterised() -> None:
+    x = torch.randn(3, STATE_DIM)
+    assert torch.equal(POLICY.mean_action(x), POLICY.mean_action(x))
+    u = POLICY.sample(x)
+    u.sum().backward()
+    assert all(p.grad is not None for p in POLICY.parameters())
+    POLICY.zero_grad()
+
+
+def test_paper_sizes() -> None:
+    nets = make_networks("apg", 5, 256)
+    linears = [m for m in nets.policy.net if isinstance(m, torch.nn.Linear)]
+    assert len(linears) == 6 and all(m.out_features == 256 for m in linears[:-1])
+    assert isinstance(nets.policy.net[1], torch.nn.GELU)
+    assert linears[-1].out_features == 4 and nets.adversary.net[-1].out_features == 128
+    assert make_networks("dpg", 5, 256).adversary is None
