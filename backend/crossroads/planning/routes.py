@@ -45,7 +45,6 @@ from crossroads.geometry import (
     drop_repeated_points,
     heading_curvature_from_derivatives,
     headings_and_curvatures,
-    point_at,
     polyline_length,
     project_onto_polyline,
     resample,

@@ -1,0 +1,73 @@
+"""Online IDC decision (SPEC §4, §7; paper eq. "apply value policy").
+
+Every step: the traffic-light logic picks the speed mode; the state of every candidate path is
+built in that mode and the batch goes through the value network; the path of least value is
+τ* = argmin_τ v_w(s(τ)); the driving policy's mean action for s(τ*) is the command.
+
+The networks are plain torch modules (anything with the shapes of :mod:`crossroads.rl.networks`),
+so this module does not depend on the training code; :meth:`IdcController.from_checkpoint` loads a
+trained run's networks through :mod:`crossroads.rl.checkpoint` when asked to.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from crossroads.idc.controller import Decision, SpeedMode
+from crossroads.idc.lights import choose_speed_mode
+from crossroads.idc.state import build_states, select_others
+from crossroads.planning import CandidatePath
+from crossroads.sim.world import Observation
+
+
+class IdcController:
+    """Value network picks the path, driving policy tracks it (mean action)."""
+
+    def __init__(self, policy: nn.Module, value: nn.Module, name: str = "idc") -> None:
+        self.policy = policy.eval()
+        self.value = value.eval()
+        self.name = name
+        self._dtype = next(value.parameters()).dtype
+        self._candidates: tuple[CandidatePath, ...] = ()
+
+    @classmethod
+    def from_checkpoint(cls, path: str | Path) -> IdcController:
+        from crossroads.rl.checkpoint import load_networks
+
+        networks, _ = load_networks(Path(path))
+        return cls(networks.policy, networks.value, name=Path(path).stem)
+
+    def reset(self, candidates: Sequence[CandidatePath]) -> None:
+        self._candidates = tuple(candidates)
+
+    def speed_mode(self, observation: Observation) -> SpeedMode:
+        return choose_speed_mode(
+            front_vehicle_stopped_s=observation.front_vehicle_stopped_s,
+            past_stop_line=observation.past_stop_line,
+            light=observation.light.light,
+            distance_to_stop_line_m=observation.distance_to_stop_line_m,
+            speed_mps=float(observation.ego[2]),
+            yellow_remaining_s=observation.light.remaining_s,
+        )
+
+    def decide_states(self, states: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+        """(τ*, action (2,), values (n,)) for the states of the n candidate paths (n, 108)."""
+        with torch.inference_mode():
+            batch = torch.from_numpy(np.ascontiguousarray(states)).to(self._dtype)
+            values = self.value(batch)
+            best = int(torch.argmin(values))
+            action = self.policy.mean_action(batch[best:best + 1])[0]
+        return best, action.double().numpy(), values.double().numpy()
+
+    def decide(self, observation: Observation) -> Decision:
+        mode = self.speed_mode(observation)
+        others = select_others(observation.ego, observation.perceived.observations,
+                               observation.perceived.kinds)
+        states = build_states(observation.ego, others, self._candidates, mode)
+        best, action, values = self.decide_states(states)
+        return Decision(action, best, mode, values)

@@ -1,0 +1,107 @@
+"""Latency of one whole online IDC decision next to a bare forward pass of the same networks.
+
+    .venv/bin/python benchmarks/decision_latency.py [--checkpoint models/apg.pt] [--samples 2000]
+
+Whole decision = the light logic + x_other selection + the state of every candidate path + the
+value network on the batch of candidates + argmin + the policy's mean action for τ*.
+Bare = value network on the same batch + the policy on one state, nothing else. Both on
+observations recorded from a real episode (c_three_lane, left turn, paper traffic), one thread.
+Target (issue #4): p99 of the whole decision ≤ 2 ms on this CPU (the paper: < 10 ms).
+Without --checkpoint, freshly initialised networks of the paper's size (5 × 256) are timed:
+latency does not depend on the weights.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import torch
+
+from crossroads.idc.decision import IdcController
+from crossroads.idc.rule_based import RuleBasedController
+from crossroads.idc.state import build_states, select_others
+from crossroads.network import catalogue
+from crossroads.rl.networks import make_networks
+from crossroads.sim.config import WorldConfig
+from crossroads.sim.world import World
+
+
+def recorded_observations(n: int, seed: int) -> list:
+    """Observations of a real episode driven by the rule controller (varied traffic)."""
+    config = WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", warmup_s=60.0)
+    out = []
+    with World(config) as world:
+        controller = RuleBasedController()
+        obs = world.reset(seed)
+        controller.reset(world.candidates)
+        while len(out) < n:
+            out.append(obs)
+            obs, outcome = world.step(controller.decide(obs).action)
+            if outcome is not None:
+                seed += 1
+                obs = world.reset(seed)
+                controller.reset(world.candidates)
+        candidates = world.candidates
+    return out, candidates
+
+
+def percentiles(samples_s: list[float]) -> tuple[float, float, float]:
+    ms = np.asarray(samples_s) * 1e3
+    return float(np.percentile(ms, 50)), float(np.percentile(ms, 99)), float(ms.max())
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--checkpoint", default=None)
+    parser.add_argument("--samples", type=int, default=2000)
+    parser.add_argument("--observations", type=int, default=400)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+
+    if args.checkpoint:
+        controller = IdcController.from_checkpoint(args.checkpoint)
+    else:
+        torch.manual_seed(0)
+        nets = make_networks("apg", hidden_layers=5, hidden_units=256)
+        controller = IdcController(nets.policy, nets.value)
+    observations, candidates = recorded_observations(args.observations, seed=0)
+    controller.reset(candidates)
+
+    # the states the bare pass sees: the same batches the decision builds
+    batches = []
+    for obs in observations:
+        others = select_others(obs.ego, obs.perceived.observations, obs.perceived.kinds)
+        states = build_states(obs.ego, others, candidates, controller.speed_mode(obs))
+        batches.append(torch.from_numpy(states).float())
+
+    def bare(batch: torch.Tensor) -> None:
+        with torch.inference_mode():
+            values = controller.value(batch)
+            controller.policy.mean_action(batch[int(torch.argmin(values))][None])
+
+    for i in range(200):  # warm-up: allocator, caches
+        controller.decide(observations[i % len(observations)])
+        bare(batches[i % len(batches)])
+    whole, forward = [], []
+    for i in range(args.samples):  # interleaved
+        obs, batch = observations[i % len(observations)], batches[i % len(batches)]
+        t0 = time.perf_counter()
+        controller.decide(obs)
+        t1 = time.perf_counter()
+        bare(batch)
+        t2 = time.perf_counter()
+        whole.append(t1 - t0)
+        forward.append(t2 - t1)
+    w50, w99, wmax = percentiles(whole)
+    f50, f99, fmax = percentiles(forward)
+    print(f"{len(candidates)} candidate paths, networks 5 x 256 GELU, {args.samples} decisions, 1 thread")
+    print(f"whole decision : p50 {w50:.3f} ms  p99 {w99:.3f} ms  max {wmax:.3f} ms")
+    print(f"bare forward   : p50 {f50:.3f} ms  p99 {f99:.3f} ms  max {fmax:.3f} ms")
+    print(f"overhead p50   : {w50 - f50:.3f} ms ({w50 / f50:.2f} x the bare pass)")
+    print(f"target p99 <= 2 ms: {'met' if w99 <= 2.0 else 'NOT met'}")
+
+
+if __name__ == "__main__":
+    main()

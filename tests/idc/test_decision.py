@@ -1,0 +1,39 @@
+"""The online IDC decision with (untrained) networks of the paper's shape, in the real world."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from crossroads.constants import JERK_MAX, STEER_RATE_MAX
+from crossroads.idc.decision import IdcController
+from crossroads.idc.state import build_states, select_others
+from crossroads.network import catalogue
+from crossroads.rl.networks import make_networks
+from crossroads.sim.config import WorldConfig
+from crossroads.sim.world import World
+
+
+def test_value_picks_the_path_and_policy_gives_the_action() -> None:
+    torch.manual_seed(0)
+    nets = make_networks("dpg", hidden_layers=5, hidden_units=256)
+    controller = IdcController(nets.policy, nets.value)
+    config = WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", warmup_s=20.0)
+    with World(config) as world:
+        obs = world.reset(4)
+        controller.reset(world.candidates)
+        for _ in range(20):
+            decision = controller.decide(obs)
+            mode = controller.speed_mode(obs)
+            others = select_others(obs.ego, obs.perceived.observations, obs.perceived.kinds)
+            states = torch.from_numpy(build_states(obs.ego, others, world.candidates, mode)).float()
+            with torch.no_grad():
+                values = nets.value(states).numpy()
+                expected = nets.policy.mean_action(states[decision.path_index][None])[0].numpy()
+            assert decision.path_index == int(np.argmin(values))
+            np.testing.assert_allclose(decision.path_values, values, rtol=1e-6)
+            np.testing.assert_allclose(decision.action, expected, rtol=1e-6)
+            assert abs(decision.action[0]) <= STEER_RATE_MAX and abs(decision.action[1]) <= JERK_MAX
+            obs, outcome = world.step(decision.action)
+            if outcome is not None:
+                break
