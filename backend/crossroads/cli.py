@@ -26,6 +26,16 @@ app = typer.Typer(
 net_app = typer.Typer(help="The intersection catalogue and SUMO network builds.", no_args_is_help=True)
 app.add_typer(net_app, name="net")
 
+
+def _mount_training() -> None:
+    """`crossroads train ...`: APG/DPG training (crossroads.rl.cli)."""
+    from crossroads.rl.cli import app as train_app
+
+    app.add_typer(train_app, name="train")
+
+
+_mount_training()
+
 F = TypeVar("F", bound=Callable[..., Any])
 Task = Literal["left", "straight", "right"]
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pytest
 import torch
 
 from crossroads.rl.config import TrainConfig
@@ -74,9 +75,10 @@ def test_schedule_of_the_adversary_and_dpg(model, path_set) -> None:
     assert moved(theta, dpg.nets.policy)
 
 
+@pytest.mark.filterwarnings("ignore:Detected call of `lr_scheduler.step")
 def test_cosine_annealing_reaches_the_end_rates(model, path_set) -> None:
     lr = learner(model, iterations=4)
-    for k in range(4):
+    for _ in range(4):
         for s in (lr.policy_sched, lr.value_sched, lr.adversary_sched):
             s.step()
     rates = lr.lrs()

@@ -127,3 +127,27 @@ def test_standing_still_times_out(net: str) -> None:
             _, outcome = world.step(np.array([0.0, -4.5]))
             steps += 1
     assert outcome.kind == "timeout" and steps == 30
+
+
+def test_abnormal_vehicles_of_the_paper_cases_show_in_the_world() -> None:
+    """Over-speeding (+50 %) vehicles exceed 30 km/h by ~50 %; rounding vehicles are flagged."""
+    from crossroads.evaluation.scenario import load_scenario, to_world_config
+    from support import REPO_ROOT
+
+    for case, kind in (("overspeed-50", "overspeed"), ("rounding-50", "rounding")):
+        spec = load_scenario(REPO_ROOT / "scenarios" / "paper" / f"{case}.yaml")
+        with World(to_world_config(spec)) as world:
+            obs = world.reset(9)
+            controller = RuleBasedController()
+            controller.reset(world.candidates)
+            flagged, top_speed = set(), 0.0
+            for _ in range(300):
+                obs, outcome = world.step(controller.decide(obs).action)
+                for pid in obs.abnormal_ids:
+                    flagged.add(pid)
+                    top_speed = max(top_speed, float(obs.participants.speed[obs.participants.index(pid)]))
+                if outcome is not None:
+                    break
+            assert flagged and {world.abnormal.kinds.get(p, kind) for p in flagged} == {kind}
+            if kind == "overspeed":
+                assert top_speed > 1.4 * 30 / 3.6

@@ -16,6 +16,7 @@ network being stepped, so a step can only move its own network.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -110,9 +111,11 @@ class Learner:
                 assert self.adversary_opt is not None
                 self._apply(self.nets.adversary, self.adversary_opt, grads[len(theta):])  # type: ignore[arg-type]
         if step_schedulers:
-            for sched in (self.value_sched, self.policy_sched, self.adversary_sched):
-                if sched is not None:
-                    sched.step()
+            with warnings.catch_warnings():  # the adversary's schedule runs on while it is not stepped
+                warnings.filterwarnings("ignore", message="Detected call of `lr_scheduler.step", category=UserWarning)
+                for sched in (self.value_sched, self.policy_sched, self.adversary_sched):
+                    if sched is not None:
+                        sched.step()
         return Losses(float(j_v.detach()), float(out.j_track.detach().mean()), float(out.j_safe.detach().mean()),
                       float(j_pi.detach()))
 

@@ -1,0 +1,112 @@
+"""Training end to end on a tiny budget: files, determinism, exact resume, reloadable policies, CLI."""
+
+from __future__ import annotations
+
+import csv
+import shutil
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+import torch
+from typer.testing import CliRunner
+
+from crossroads.rl.checkpoint import load_checkpoint, load_networks
+from crossroads.rl.cli import app
+from crossroads.rl.config import TrainConfig, apply_overrides
+from crossroads.rl.train import RunExistsError, train
+
+from rl.rl_support import INTERSECTION, make_batch
+
+
+def tiny(out: Path, **kw) -> TrainConfig:
+    base = TrainConfig(
+        iterations=6, batch_size=8, horizon=5, hidden_layers=2, hidden_units=32, workers=0,
+        intersections=(INTERSECTION,), tasks=("left",), learning_starts=8, samples_per_iteration=8,
+        rule_rounds=1, max_episode_steps=30, warmup_s=5.0, log_every=3, checkpoint_every=3,
+        tar_runs=1, tar_steps=10, out=out, progress=False, tensorboard=False)
+    return replace(base, **kw)
+
+
+def final_state(run_dir: Path) -> dict:
+    return load_checkpoint(run_dir)["learner"]
+
+
+def same_parameters(a: dict, b: dict) -> bool:
+    return all(torch.equal(a[net][k], b[net][k]) for net in ("policy", "value", "adversary") for k in a[net])
+
+
+def metric_rows(run_dir: Path) -> list[dict]:
+    with (run_dir / "metrics.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:  # timing differs run to run
+        r.pop("charts/iterations_per_s")
+        r.pop("time/elapsed_s")
+    return rows
+
+
+def test_smoke_run_with_one_worker_process(tmp_path: Path) -> None:
+    run = train(tiny(tmp_path, workers=1, run_name="smoke"))
+    rows = metric_rows(run)
+    assert [int(r["iteration"]) for r in rows] == [3, 6]
+    for key in ("losses/J_v", "losses/J_track", "losses/J_safe", "losses/J_pi", "charts/TAR"):
+        assert all(r[key] != "" and float(r[key]) == float(r[key]) for r in rows), key
+    assert (run / "checkpoints" / "ckpt_00000006.pt").is_file() and (run / "checkpoints" / "last.pt").is_file()
+    assert (run / "config.json").is_file()
+    with pytest.raises(RunExistsError):
+        train(tiny(tmp_path, workers=1, run_name="smoke"))
+
+
+def test_same_seed_same_parameters_and_resume_is_exact(tmp_path: Path) -> None:
+    first = train(tiny(tmp_path, run_name="first"))
+    second = train(tiny(tmp_path, run_name="second"))
+    assert same_parameters(final_state(first), final_state(second))
+    assert metric_rows(first) == metric_rows(second)
+    other = train(tiny(tmp_path, run_name="other", seed=1))
+    assert not same_parameters(final_state(first), final_state(other))
+
+    # interrupt after iteration 3: keep only that checkpoint, then resume
+    resumed = tmp_path / "resumed"
+    shutil.copytree(first, resumed)
+    ckpts = resumed / "checkpoints"
+    (ckpts / "ckpt_00000006.pt").unlink()
+    shutil.copyfile(ckpts / "ckpt_00000003.pt", ckpts / "last.pt")
+    assert load_checkpoint(resumed)["iteration"] == 3
+    train(tiny(tmp_path, run_name="resumed"), resume=True)
+    assert load_checkpoint(resumed)["iteration"] == 6
+    assert same_parameters(final_state(first), final_state(resumed))
+    assert metric_rows(first) == metric_rows(resumed)
+
+
+def test_dpg_run_and_a_loaded_checkpoint_reproduces_its_actions(tmp_path: Path, path_set, model) -> None:
+    run = train(tiny(tmp_path, algo="dpg", iterations=3, run_name="dpg"))
+    nets, config = load_networks(run)
+    assert config.algo == "dpg" and nets.adversary is None
+    again, _ = load_networks(run / "checkpoints" / "last.pt")
+    s = model.initial_states(make_batch(path_set, 5, seed=4))
+    assert torch.equal(nets.policy.mean_action(s), again.policy.mean_action(s))
+    saved = load_checkpoint(run)["learner"]["policy"]
+    assert all(torch.equal(saved[k], v) for k, v in nets.policy.state_dict().items())
+
+
+def test_cli_overrides_and_plot(tmp_path: Path) -> None:
+    cfg = apply_overrides(TrainConfig(), {"batch_size": "8", "tasks": "left,right", "max_grad_norm": "none",
+                                          "policy_lr": "1e-3,1e-5", "sample_actions": "false"})
+    assert cfg.batch_size == 8 and cfg.tasks == ("left", "right") and cfg.max_grad_norm is None
+    assert cfg.policy_lr == (1e-3, 1e-5) and cfg.sample_actions is False
+    with pytest.raises(ValueError, match="unknown training option"):
+        apply_overrides(TrainConfig(), {"batchsize": "8"})
+    with pytest.raises(ValueError, match="algo"):
+        apply_overrides(TrainConfig(), {"algo": "ppo"})
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "metrics.csv").write_text(
+        "iteration,losses/J_v,losses/J_track,losses/J_safe,losses/J_pi,charts/TAR,charts/TAR_std,"
+        "charts/lr_policy,charts/lr_value\n1,2,3,0,3,10,1,1e-4,3e-4\n2,1,2,0.1,3.5,9,1,5e-5,1e-4\n")
+    out = tmp_path / "curves.png"
+    result = CliRunner().invoke(app, ["plot", str(run), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    assert out.stat().st_size > 1000
+    bad = CliRunner().invoke(app, ["--set", "nope=1", "--out", str(tmp_path)])
+    assert bad.exit_code == 2 and "unknown training option" in bad.output
