@@ -227,23 +227,3 @@ def ops(*arrays: object) -> Ops:
     ``None`` entries (an optional argument left out) are ignored.
     """
     return TorchOps if any(is_torch(a) for a in arrays) else NumpyOps
-
-
-def as_backend(x: Any, like: Array) -> Array:
-    """``x`` (scalar, list, numpy array or tensor) converted to the backend, dtype and device of ``like``.
-
-    With a tensor ``like``, a tensor ``x`` is converted by ``.to`` so its gradient still flows.
-    """
-    if is_torch(like):
-        import torch
-
-        if isinstance(x, torch.Tensor):
-            return x.to(dtype=like.dtype, device=like.device)
-        return torch.as_tensor(np.asarray(x, dtype=np.float64), dtype=like.dtype, device=like.device)
-    dtype = like.dtype if isinstance(like, np.ndarray) and like.dtype.kind == "f" else np.float64
-    return np.asarray(x, dtype=dtype)
-
-
-def wrap_angle(xp: Ops, angle_rad: Array) -> Array:
-    """Angles wrapped into [−π, π) with the namespace ``xp`` (same as ``xp.wrap``)."""
-    return xp.wrap(angle_rad)
