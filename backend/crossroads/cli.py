@@ -193,5 +193,132 @@ def run(
         typer.echo(f"trace: {trace}")
 
 
+TraceOption = Literal["all", "failed", "none"]
+
+
+@app.command()
+@reports_errors
+def evaluate(
+    scenario: Annotated[Path | None, typer.Argument(
+        metavar="SCENARIO.yaml|DIR", help="scenario file, or a directory of them")] = None,
+    policy: Annotated[list[str] | None, typer.Option(
+        help="'rule' or a trained checkpoint (.pt); repeat to compare policies on the same seeds")] = None,
+    runs: Annotated[int | None, typer.Option(min=1, help="runs per batch (default: the scenario's runs)")] = None,
+    workers: Annotated[int | None, typer.Option(min=1, help="worker processes (default: CPU count)")] = None,
+    ray: Annotated[str | None, typer.Option(
+        metavar="ADDRESS", help="run on Ray: a cluster address, or 'local' to start a local Ray")] = None,
+    db: Annotated[str | None, typer.Option(help="database URL (default: SQLite in the data dir)")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print one JSON object per batch (a list)")] = False,
+    traces: Annotated[TraceOption, typer.Option(help="save the traces of all, failed or no episodes")] = "failed",
+    resume: Annotated[list[int] | None, typer.Option(
+        metavar="BATCH_ID", help="resume stored batches instead (runs already recorded are skipped)")] = None,
+) -> None:
+    """Run batches (one per scenario x policy) into the results store and print their figures."""
+    from tqdm import tqdm
+
+    from crossroads.evaluation.batch import BatchError, BatchRunner, create_batch_for
+    from crossroads.evaluation.executors import ExecutorError
+    from crossroads.evaluation.scenario import load_scenarios
+    from crossroads.settings import Settings
+    from crossroads.store import StoreError, open_store
+
+    def fail(message: str) -> typer.Exit:
+        typer.secho(f"error: {message}", err=True, fg=typer.colors.RED)
+        return typer.Exit(code=2)
+
+    if scenario is None and not resume:
+        raise fail("give a SCENARIO.yaml or DIR (or --resume BATCH_ID)")
+    settings = Settings(db_url=db, ray_address=ray)
+    try:
+        store = open_store(settings.database_url)
+    except StoreError as exc:
+        raise fail(str(exc)) from None
+    # Every scenario file is validated before anything runs; each batch is created just before
+    # it runs, so an interrupted command leaves no queued batches behind, only the one to resume.
+    planned: list[Callable[[], int]] = [lambda b=b: b for b in resume or []]
+    if scenario is not None:
+        found = load_scenarios(scenario)
+        if not found:
+            raise fail(f"no scenario files (*.yaml) in {scenario}")
+        for path, spec in found:
+            for ref in policy or ["rule"]:
+                planned.append(lambda spec=spec, ref=ref, base=path.parent: create_batch_for(
+                    store, spec=spec, policy=ref, runs=runs, traces=traces, base_dir=base))
+    results = []
+    try:
+        for plan in planned:
+            batch_id = plan()
+            with tqdm(desc=f"batch {batch_id}", unit="ep", disable=None, leave=False) as bar:
+                def progress(done: int, total: int, last: Any, bar: Any = bar, batch_id: int = batch_id) -> None:
+                    bar.total = total
+                    bar.n = done
+                    if last is not None and last.outcome == "error":
+                        bar.write(f"batch {batch_id} run {last.run_index}: error: "
+                                  f"{(last.error or '').splitlines()[0]}", file=sys.stderr)
+                    bar.refresh()
+
+                runner = BatchRunner(store, batch_id, workers=workers, ray_address=settings.ray_address,
+                                     data_dir=settings.data_dir, on_progress=progress)
+                try:
+                    result = runner.run()
+                except KeyboardInterrupt:
+                    typer.secho(f"interrupted: resume with `crossroads evaluate --resume {batch_id}`"
+                                + (f" --db {db}" if db else ""), err=True, fg=typer.colors.YELLOW)
+                    raise typer.Exit(code=130) from None
+            results.append(result)
+            if not as_json:
+                typer.echo(_batch_line(result))
+    except (BatchError, ExecutorError, StoreError) as exc:
+        raise fail(str(exc)) from None
+    finally:
+        store.close()
+    if as_json:
+        json.dump([r.to_json() for r in results], sys.stdout)
+        sys.stdout.write("\n")
+
+
+def _batch_line(r: Any) -> str:
+    """One batch's figures on one line (for `evaluate`)."""
+    rate = ("n/a" if r.pass_rate is None else
+            f"{100 * r.pass_rate:.1f} % ({r.passed}/{r.judged}), "
+            f"Wilson 95 % [{100 * r.wilson_low:.1f}, {100 * r.wilson_high:.1f}] %")
+    travel = "n/a" if r.travel_time_mean_s is None else (
+        f"{r.travel_time_mean_s:.2f} ± {r.travel_time_std_s or 0.0:.2f} s")
+    outcomes = ", ".join(f"{k} {v}" for k, v in r.outcome_counts.items() if v)
+    return (f"batch {r.batch_id}: {r.scenario} x {r.policy} [{r.status}]: pass rate {rate}; "
+            f"errors {r.errors}; outcomes: {outcomes or 'none'}; travel time {travel}")
+
+@app.command()
+@reports_errors
+def report(
+    batch_ids: Annotated[list[int], typer.Argument(metavar="BATCH_ID...", help="stored batches")],
+    out: Annotated[Path, typer.Option("-o", "--out", metavar="OUT.html", help="the HTML report")],
+    csv: Annotated[Path | None, typer.Option(metavar="OUT.csv", help="also one CSV line per batch")] = None,
+    db: Annotated[str | None, typer.Option(help="database URL (default: SQLite in the data dir)")] = None,
+    title: Annotated[str, typer.Option(help="the report's title")] = "Crossroads evaluation",
+) -> None:
+    """Tables like the paper's (with its numbers beside), plots and failed episodes' traces."""
+    from crossroads.evaluation.report import render_html, write_csv
+    from crossroads.settings import Settings
+    from crossroads.store import StoreError, open_store
+    from crossroads.store.reporting import UnknownBatchError, report_rows
+
+    try:
+        store = open_store(Settings(db_url=db).database_url)
+        try:
+            rows = report_rows(store, batch_ids)
+        finally:
+            store.close()
+    except (StoreError, UnknownBatchError) as exc:
+        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
+        raise typer.Exit(code=2) from None
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(render_html(rows, title=title), encoding="utf-8")
+    typer.echo(f"report: {out}")
+    if csv is not None:
+        write_csv(rows, csv)
+        typer.echo(f"csv: {csv}")
+
+
 if __name__ == "__main__":  # pragma: no cover
     app()

@@ -1,0 +1,435 @@
+"""Where a batch's episodes run: local worker processes (default) or Ray actors.
+
+Both executors drive the same :class:`EpisodeWorker`: one per process, holding one
+:class:`~crossroads.sim.world.World` (libsumo runs one simulation per process) and one
+controller, reused for every episode that worker gets. A worker turns every Python exception of
+an episode into an error report, and the executor turns a worker that dies (killed, segfault)
+into an error report for the run it held and starts a replacement; so every task given to an
+executor comes back as exactly one :class:`EpisodeReport`, unless the batch is cancelled (the
+runs in flight are then dropped, not reported, and run again on resume).
+
+Executors hand reports to a callback in the calling thread, one at a time, as they arrive.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import multiprocessing as mp
+import os
+import signal
+import threading
+import time
+import traceback
+from collections import deque
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection, wait
+from pathlib import Path
+from typing import Any, Literal, Protocol
+
+FaultKind = Literal["raise", "kill"]
+ERROR_MESSAGE_MAX = 4000  # [chars] of a stored error message (first line: type and message)
+POLL_S = 0.2  # [s] how often executors look at the cancel event
+FAULT_AT_STEP = 3  # an injected fault strikes at this decision of the episode
+
+
+class ExecutorError(RuntimeError):
+    """The executor cannot go on (e.g. its workers die before running anything)."""
+
+
+@dataclass(frozen=True)
+class EpisodeTask:
+    """Run ``run_index`` of a batch, with its seed."""
+
+    run_index: int
+    seed: int
+
+
+@dataclass(frozen=True)
+class TraceFile:
+    """A trace a worker wrote: path, size [bytes], sha256 (hex)."""
+
+    path: str
+    size_bytes: int
+    sha256: str
+
+
+@dataclass(frozen=True)
+class EpisodeReport:
+    """What came of one task: ``result`` (EpisodeResult JSON) or ``error`` (a message)."""
+
+    run_index: int
+    seed: int
+    result: dict[str, Any] | None
+    error: str | None
+    wall_s: float  # [s] wall-clock time of the episode in its worker
+    trace: TraceFile | None = None
+    worker: str = ""
+
+    @property
+    def outcome(self) -> str:
+        return "error" if self.result is None else str(self.result["outcome"])
+
+
+@dataclass(frozen=True)
+class WorkerJob:
+    """Everything a worker needs to run a batch's episodes (picklable, small)."""
+
+    spec: dict[str, Any]  # ScenarioSpec as JSON (model_dump(mode="json"))
+    base_dir: str | None  # relative net paths of the spec count from here
+    policy_ref: str  # "rule" or a checkpoint path
+    traces: Literal["all", "failed", "none"] = "failed"
+    trace_dir: str | None = None  # <data_dir>/traces/<batch_id>; required unless traces == "none"
+    # Test hook: run index → a fault injected mid-episode ("raise": an exception in the
+    # controller; "kill": the worker process SIGKILLs itself). Empty in real use.
+    faults: Mapping[int, FaultKind] = field(default_factory=dict)
+
+
+def error_message(exc: BaseException) -> str:
+    """``Type: message`` on the first line, then the traceback (bounded)."""
+    head = f"{type(exc).__name__}: {exc}".strip()
+    tb = "".join(traceback.format_exception(exc)).strip()
+    text = f"{head}\n{tb}"
+    return text if len(text) <= ERROR_MESSAGE_MAX else text[: ERROR_MESSAGE_MAX - 3] + "..."
+
+
+class _Sabotaged:
+    """A controller that fails on purpose at its FAULT_AT_STEP-th decision (tests only)."""
+
+    def __init__(self, inner: Any, fault: FaultKind) -> None:
+        self.inner, self.fault, self.name, self._calls = inner, fault, getattr(inner, "name", "?"), 0
+
+    def reset(self, candidates: Any) -> None:
+        self._calls = 0
+        self.inner.reset(candidates)
+
+    def decide(self, observation: Any) -> Any:
+        self._calls += 1
+        if self._calls == FAULT_AT_STEP:
+            if self.fault == "kill":
+                os.kill(os.getpid(), signal.SIGKILL)
+            raise RuntimeError("injected fault (test hook)")
+        return self.inner.decide(observation)
+
+
+class EpisodeWorker:
+    """Runs episodes of one job in this process: builds the World and controller once, lazily,
+    and again only after an episode crashed (its SUMO session may be unusable)."""
+
+    def __init__(self, job: WorkerJob) -> None:
+        self.job = job
+        self.name = f"pid {os.getpid()}"
+        self._world: Any = None
+        self._controller: Any = None
+        self._spec: Any = None
+
+    def _ready(self) -> tuple[Any, Any]:
+        from crossroads.evaluation.policies import load_controller
+        from crossroads.evaluation.scenario import to_world_config, validate_scenario
+        from crossroads.sim.world import World
+
+        if self._spec is None:
+            self._spec = validate_scenario(self.job.spec, source="batch scenario",
+                                           check_references=False)
+        if self._controller is None:
+            self._controller = load_controller(self.job.policy_ref)
+        if self._world is None:
+            self._world = World(to_world_config(self._spec, base_dir=self.job.base_dir))
+        return self._world, self._controller
+
+    def _discard_world(self) -> None:
+        world, self._world = self._world, None
+        if world is not None:
+            try:
+                world.close()
+            except Exception:  # noqa: BLE001 - it is being thrown away
+                pass
+
+    def run(self, task: EpisodeTask) -> EpisodeReport:
+        """One episode; never raises for a failure of the episode itself."""
+        from crossroads.evaluation.episode import run_episode
+        from crossroads.evaluation.trace import TraceRecorder
+
+        start = time.perf_counter()
+        recorder = TraceRecorder() if self.job.traces != "none" else None
+        result: dict[str, Any] | None = None
+        error: str | None = None
+        try:
+            world, controller = self._ready()
+            fault = self.job.faults.get(task.run_index)
+            if fault is not None:
+                controller = _Sabotaged(controller, fault)
+            episode = run_episode(world, controller, task.seed, recorder=recorder,
+                                  scenario_name=self._spec.name)
+            result = episode.to_json()
+        except Exception as exc:  # noqa: BLE001 - recorded as the episode's error
+            error = error_message(exc)
+            self._discard_world()
+        wall = time.perf_counter() - start
+        trace = None
+        if recorder is not None and (self.job.traces == "all" or result is None
+                                     or result["outcome"] != "passed"):
+            trace = self._save_trace(recorder, task)
+        return EpisodeReport(task.run_index, task.seed, result, error, round(wall, 4), trace, self.name)
+
+    def _save_trace(self, recorder: Any, task: EpisodeTask) -> TraceFile | None:
+        """Write the trace (a partial one for a crashed episode) atomically; None if impossible."""
+        if self.job.trace_dir is None:
+            return None
+        try:
+            trace = recorder.trace()
+        except Exception:  # noqa: BLE001 - the episode crashed before its trace had a header
+            return None
+        final = Path(self.job.trace_dir) / f"{task.run_index}.trace.npz"
+        tmp = final.with_name(f".{final.name}.{os.getpid()}.tmp")
+        trace.save(tmp)
+        os.replace(tmp, final)
+        data = final.read_bytes()
+        return TraceFile(str(final), len(data), hashlib.sha256(data).hexdigest())
+
+    def close(self) -> None:
+        self._discard_world()
+
+
+ReportSink = Callable[[EpisodeReport], None]
+
+
+class Executor(Protocol):
+    """Runs tasks, reporting each as it finishes; returns when all are reported or on cancel."""
+
+    workers: int
+
+    @property
+    def description(self) -> str: ...
+
+    def run(self, job: WorkerJob, tasks: Iterable[EpisodeTask], report: ReportSink,
+            cancel: threading.Event) -> None: ...
+
+
+def _died(task: EpisodeTask, who: str, why: str) -> EpisodeReport:
+    return EpisodeReport(task.run_index, task.seed, None, f"WorkerDied: {who} {why}", 0.0, None, who)
+
+
+# --- local processes ----------------------------------------------------------------------------
+
+
+def _process_main(job: WorkerJob, conn: Connection) -> None:
+    """A worker process: receive tasks, send reports, until None or the pipe closes."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    worker = EpisodeWorker(job)
+    try:
+        while True:
+            task = conn.recv()
+            if task is None:
+                break
+            conn.send(worker.run(task))
+    except (EOFError, OSError):
+        pass
+    finally:
+        worker.close()
+        conn.close()
+
+
+class _Slot:
+    def __init__(self, ctx: Any, job: WorkerJob) -> None:
+        self.conn, child = ctx.Pipe(duplex=True)
+        self.process = ctx.Process(target=_process_main, args=(job, child), daemon=True,
+                                   name="crossroads-episode-worker")
+        self.process.start()
+        child.close()
+        self.task: EpisodeTask | None = None
+
+    @property
+    def who(self) -> str:
+        return f"worker process {self.process.pid}"
+
+    def stop(self, *, force: bool) -> None:
+        if self.process.is_alive():
+            if force:
+                self.process.kill()
+            else:
+                try:
+                    self.conn.send(None)
+                except OSError:
+                    self.process.kill()
+        self.process.join(timeout=5.0)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join()
+        self.conn.close()
+
+
+def _exit_reason(code: int | None) -> str:
+    if code is not None and code < 0:
+        try:
+            return f"was killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"was killed by signal {-code}"
+    return f"exited with code {code}"
+
+
+class ProcessExecutor:
+    """K local worker processes (spawn context), one task each at a time."""
+
+    def __init__(self, workers: int | None = None) -> None:
+        self.workers = max(1, workers or os.cpu_count() or 1)
+        self._pids: list[int] = []
+
+    @property
+    def description(self) -> str:
+        return "local"
+
+    def worker_pids(self) -> list[int]:
+        """The pids of the live workers (for monitoring and tests)."""
+        return list(self._pids)
+
+    def run(self, job: WorkerJob, tasks: Iterable[EpisodeTask], report: ReportSink,
+            cancel: threading.Event) -> None:
+        pending = deque(tasks)
+        if not pending:
+            return
+        ctx = mp.get_context("spawn")
+        slots = [_Slot(ctx, job) for _ in range(min(self.workers, len(pending)))]
+        deaths_without_progress = 0
+        try:
+            for slot in slots:
+                self._dispatch(slot, pending)
+            while any(s.task is not None for s in slots):
+                self._pids = [s.process.pid for s in slots if s.process.pid is not None]
+                if cancel.is_set():
+                    return
+                busy = [s for s in slots if s.task is not None]
+                ready = wait([s.conn for s in busy] + [s.process.sentinel for s in busy], timeout=POLL_S)
+                for i, slot in enumerate(slots):
+                    if slot.task is None:
+                        continue
+                    got = None
+                    if slot.conn in ready:
+                        try:
+                            got = slot.conn.recv()
+                        except (EOFError, OSError):
+                            got = None
+                    if got is not None:
+                        slot.task = None
+                        deaths_without_progress = 0
+                        report(got)
+                    elif slot.process.sentinel in ready or not slot.process.is_alive():
+                        slot.process.join(timeout=1.0)
+                        task, slot.task = slot.task, None
+                        report(_died(task, slot.who, _exit_reason(slot.process.exitcode)))
+                        deaths_without_progress += 1
+                        if deaths_without_progress > 3 * self.workers:
+                            raise ExecutorError(
+                                f"{deaths_without_progress} worker processes died in a row; "
+                                f"last: {slot.who} {_exit_reason(slot.process.exitcode)}")
+                        slot.stop(force=True)
+                        slots[i] = slot = _Slot(ctx, job) if pending else slot
+                    if slot.task is None and pending and not cancel.is_set():
+                        if not slot.process.is_alive():  # died while idle: no run lost
+                            slot.stop(force=True)
+                            slots[i] = slot = _Slot(ctx, job)
+                        self._dispatch(slot, pending)
+        finally:
+            for slot in slots:
+                slot.stop(force=cancel.is_set() or slot.task is not None)
+            self._pids = []
+
+    def _dispatch(self, slot: _Slot, pending: deque[EpisodeTask]) -> None:
+        task = pending.popleft()
+        slot.task = task
+        try:
+            slot.conn.send(task)
+        except OSError:  # it died between tasks: the sentinel reports the task as an error
+            pass
+
+
+# --- Ray ----------------------------------------------------------------------------------------
+
+
+class _RayEpisodeActor:
+    """A Ray actor around one EpisodeWorker (its own process, its own World)."""
+
+    def __init__(self, job: WorkerJob) -> None:
+        self.worker = EpisodeWorker(job)
+        self.worker.name = f"ray actor pid {os.getpid()}"
+
+    def run(self, task: EpisodeTask) -> EpisodeReport:
+        return self.worker.run(task)
+
+    def pid(self) -> int:
+        return os.getpid()
+
+
+class RayExecutor:
+    """K Ray actors. ``address``: a cluster (``ray://host:10001``, ``auto``) or ``local`` to start
+    a local Ray for the batch. When Ray is already initialised in this process it is used as is
+    (and left running); a Ray this executor started is shut down at the end.
+
+    Traces are written by the actors to ``trace_dir``: on a multi-node cluster it must be a
+    shared file system.
+    """
+
+    def __init__(self, address: str, workers: int | None = None) -> None:
+        self.address = address
+        self.workers = max(1, workers or os.cpu_count() or 1)
+
+    @property
+    def description(self) -> str:
+        return f"ray:{self.address}"
+
+    def run(self, job: WorkerJob, tasks: Iterable[EpisodeTask], report: ReportSink,
+            cancel: threading.Event) -> None:
+        import ray
+        from ray.exceptions import RayActorError, RayError
+
+        pending = deque(tasks)
+        if not pending:
+            return
+        started = False
+        if not ray.is_initialized():
+            if self.address == "local":
+                ray.init(num_cpus=self.workers, include_dashboard=False, log_to_driver=False)
+            else:
+                ray.init(address=self.address, log_to_driver=False)
+            started = True
+        actor_class = ray.remote(num_cpus=1, max_restarts=0)(_RayEpisodeActor)
+        actors = [actor_class.remote(job) for _ in range(min(self.workers, len(pending)))]
+        inflight: dict[Any, tuple[int, EpisodeTask]] = {}
+        deaths_without_progress = 0
+
+        def dispatch(index: int) -> None:
+            if pending and not cancel.is_set():
+                task = pending.popleft()
+                inflight[actors[index].run.remote(task)] = (index, task)
+
+        try:
+            for index in range(len(actors)):
+                dispatch(index)
+            while inflight:
+                if cancel.is_set():
+                    return
+                ready, _ = ray.wait(list(inflight), num_returns=1, timeout=POLL_S)
+                for ref in ready:
+                    index, task = inflight.pop(ref)
+                    try:
+                        got = ray.get(ref)
+                        deaths_without_progress = 0
+                    except RayActorError as exc:
+                        got = _died(task, "ray actor", f"died: {str(exc).splitlines()[0]}")
+                        deaths_without_progress += 1
+                        if deaths_without_progress > 3 * len(actors):
+                            raise ExecutorError(
+                                f"{deaths_without_progress} Ray actors died in a row") from exc
+                        actors[index] = actor_class.remote(job)
+                    except RayError as exc:
+                        got = EpisodeReport(task.run_index, task.seed, None, error_message(exc), 0.0)
+                    report(got)
+                    dispatch(index)
+        finally:
+            for actor in actors:
+                try:
+                    ray.kill(actor)
+                except Exception:  # noqa: BLE001 - already gone
+                    pass
+            if started:
+                ray.shutdown()

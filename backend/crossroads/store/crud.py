@@ -1,0 +1,310 @@
+"""Keyword-only helpers over the store's tables; the caller injects the session.
+
+Helpers that create or change rows commit (one helper call = one transaction), so a result
+written by :func:`record_episode` is either wholly in the store or not at all.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from sqlalchemy import func, select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session, joinedload
+
+from crossroads.store.tables import (
+    BATCH_STATUSES,
+    EPISODE_OUTCOMES,
+    TRACE_MODES,
+    Batch,
+    Episode,
+    Policy,
+    Scenario,
+    Trace,
+    utcnow,
+)
+
+FINISHED_STATUSES = ("done", "cancelled", "failed")
+CARD_SUFFIXES = (".card.json", ".json")  # a checkpoint's model card: models/apg.pt → apg.card.json
+HASH_CHUNK = 1 << 20
+
+
+def file_sha256(path: str | Path) -> str:
+    digest = hashlib.sha256()
+    with Path(path).open("rb") as f:
+        while chunk := f.read(HASH_CHUNK):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+@dataclass(frozen=True)
+class PolicyIdentity:
+    """Who a policy reference is: ``builtin:rule`` or the sha256 of a checkpoint's bytes."""
+
+    name: str
+    ref: str
+    kind: str  # builtin | checkpoint
+    file_hash: str
+    card: dict[str, Any] | None
+
+
+def policy_identity(ref: str) -> PolicyIdentity:
+    """The identity of ``ref`` (a built-in name or a checkpoint path; its card is read from a
+    ``<stem>.card.json`` or ``<stem>.json`` next to it when there is one)."""
+    from crossroads.evaluation.policies import BUILTIN_POLICIES, PolicyError
+
+    if ref in BUILTIN_POLICIES:
+        return PolicyIdentity(ref, ref, "builtin", f"builtin:{ref}", None)
+    path = Path(ref)
+    if not path.is_file():
+        raise PolicyError(f"policy checkpoint {ref!r} does not exist")
+    card = None
+    for suffix in CARD_SUFFIXES:
+        candidate = path.with_name(path.stem + suffix)
+        if candidate.is_file():
+            try:
+                card = json.loads(candidate.read_text(encoding="utf-8"))
+            except (OSError, ValueError):
+                card = None
+            break
+    return PolicyIdentity(path.stem, ref, "checkpoint", f"sha256:{file_sha256(path)}", card)
+
+
+def _get_or_create(session: Session, model: type[Any], unique: Mapping[str, Any],
+                   values: Mapping[str, Any]) -> Any:
+    """Select by the unique columns, else insert (a concurrent insert of the same row is caught)."""
+    stmt = select(model).filter_by(**unique)
+    row = session.scalars(stmt).first()
+    if row is not None:
+        return row
+    try:
+        with session.begin_nested():
+            row = model(**unique, **values)
+            session.add(row)
+        session.commit()
+        return row
+    except IntegrityError:
+        session.rollback()
+        row = session.scalars(stmt).first()
+        if row is None:
+            raise
+        return row
+
+
+# --- scenarios and policies ---------------------------------------------------------------------
+
+
+def get_or_create_scenario(*, session: Session, spec: Any) -> Scenario:
+    """The row of a :class:`~crossroads.evaluation.scenario.ScenarioSpec` (by content hash)."""
+    from crossroads.evaluation.scenario import canonical_json, content_hash
+
+    return _get_or_create(session, Scenario, {"content_hash": content_hash(spec)},
+                          {"name": spec.name, "spec": json.loads(canonical_json(spec))})
+
+
+def get_scenario(*, session: Session, scenario_id: int) -> Scenario | None:
+    return session.get(Scenario, scenario_id)
+
+
+def scenario_spec(*, scenario: Scenario) -> Any:
+    """The stored spec, validated again into a ScenarioSpec (references are not checked)."""
+    from crossroads.evaluation.scenario import validate_scenario
+
+    return validate_scenario(scenario.spec, source=f"stored scenario {scenario.id}",
+                             check_references=False)
+
+
+def get_or_create_policy(*, session: Session, ref: str, card: Mapping[str, Any] | None = None) -> Policy:
+    """The row of a policy reference (``rule`` or a checkpoint path), by its identity hash."""
+    ident = policy_identity(ref)
+    return _get_or_create(
+        session, Policy, {"file_hash": ident.file_hash},
+        {"name": ident.name, "ref": ident.ref, "kind": ident.kind,
+         "card": dict(card) if card is not None else ident.card})
+
+
+def get_policy(*, session: Session, policy_id: int) -> Policy | None:
+    return session.get(Policy, policy_id)
+
+
+# --- batches ------------------------------------------------------------------------------------
+
+
+def create_batch(*, session: Session, scenario: Scenario, policy: Policy, runs: int,
+                 base_seed: int | None = None, traces: str = "failed", base_dir: str | Path | None = None,
+                 workers: int | None = None, executor: str | None = None) -> Batch:
+    """A queued batch of ``runs`` runs (base seed: the scenario's own ``seed``)."""
+    if runs < 1:
+        raise ValueError(f"runs must be >= 1, got {runs}")
+    if traces not in TRACE_MODES:
+        raise ValueError(f"traces must be one of {', '.join(TRACE_MODES)}, got {traces!r}")
+    batch = Batch(scenario_id=scenario.id, policy_id=policy.id, runs=runs,
+                  base_seed=int(scenario.spec["seed"] if base_seed is None else base_seed),
+                  status="queued", traces=traces,
+                  base_dir=None if base_dir is None else str(Path(base_dir).resolve()),
+                  workers=workers, executor=executor)
+    session.add(batch)
+    session.commit()
+    return batch
+
+
+def get_batch(*, session: Session, batch_id: int) -> Batch | None:
+    stmt = (select(Batch).where(Batch.id == batch_id)
+            .options(joinedload(Batch.scenario), joinedload(Batch.policy)))
+    return session.scalars(stmt).first()
+
+
+def list_batches(*, session: Session, status: str | Sequence[str] | None = None,
+                 scenario_id: int | None = None, policy_id: int | None = None,
+                 limit: int = 100, offset: int = 0) -> list[Batch]:
+    """Batches, newest first."""
+    stmt = select(Batch).options(joinedload(Batch.scenario), joinedload(Batch.policy))
+    if status is not None:
+        stmt = stmt.where(Batch.status.in_([status] if isinstance(status, str) else list(status)))
+    if scenario_id is not None:
+        stmt = stmt.where(Batch.scenario_id == scenario_id)
+    if policy_id is not None:
+        stmt = stmt.where(Batch.policy_id == policy_id)
+    stmt = stmt.order_by(Batch.id.desc()).limit(limit).offset(offset)
+    return list(session.scalars(stmt).unique())
+
+
+def set_batch_status(*, session: Session, batch_id: int, status: str, error: str | None = None,
+                     workers: int | None = None, executor: str | None = None) -> Batch:
+    """Move a batch to ``status``: ``running`` stamps started_at (and clears finished_at, error);
+    a finished status stamps finished_at."""
+    if status not in BATCH_STATUSES:
+        raise ValueError(f"status must be one of {', '.join(BATCH_STATUSES)}, got {status!r}")
+    batch = session.get(Batch, batch_id)
+    if batch is None:
+        raise LookupError(f"no batch {batch_id}")
+    batch.status = status
+    if status == "running":
+        batch.started_at = utcnow()
+        batch.finished_at = None
+        batch.error = None
+    if status in FINISHED_STATUSES:
+        batch.finished_at = utcnow()
+    if error is not None:
+        batch.error = error
+    if workers is not None:
+        batch.workers = workers
+    if executor is not None:
+        batch.executor = executor
+    session.commit()
+    return batch
+
+
+def delete_batch(*, session: Session, batch_id: int) -> bool:
+    """Delete a batch with its episodes (their traces' rows stay; files are the caller's)."""
+    batch = session.get(Batch, batch_id)
+    if batch is None:
+        return False
+    session.execute(Episode.__table__.delete().where(Episode.batch_id == batch_id))
+    session.delete(batch)
+    session.commit()
+    return True
+
+
+# --- episodes -----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TraceRef:
+    """Where an episode's trace lies: a file (``path``) or its bytes (``blob``)."""
+
+    size_bytes: int
+    sha256: str
+    path: str | None = None
+    blob: bytes | None = None
+
+
+def _finite(value: float | None) -> float | None:
+    return None if value is None or not math.isfinite(value) else float(value)
+
+
+def record_episode(*, session: Session, batch_id: int, run_index: int, seed: int,
+                   result: Any | None = None, error: str | None = None,
+                   trace: TraceRef | None = None, wall_s: float | None = None) -> Episode | None:
+    """Record run ``run_index`` of a batch in one transaction (with its trace row, if any).
+
+    Give either ``result`` (an :class:`~crossroads.evaluation.episode.EpisodeResult` or its JSON
+    dict) or ``error`` (the message; outcome ``error``). Idempotent: when the run is already
+    recorded nothing changes and ``None`` is returned, so a run is never counted twice.
+    """
+    if (result is None) == (error is None):
+        raise ValueError("give exactly one of result and error")
+    if session.scalar(select(Episode.id).where(Episode.batch_id == batch_id,
+                                               Episode.run_index == run_index)) is not None:
+        return None
+    if error is not None:
+        fields: dict[str, Any] = {"outcome": "error", "error_message": error, "detail": "",
+                                  "events": []}
+    else:
+        data = result if isinstance(result, Mapping) else result.to_json()
+        if data["outcome"] not in EPISODE_OUTCOMES:
+            raise ValueError(f"unknown outcome {data['outcome']!r}")
+        fields = {
+            "outcome": data["outcome"], "travel_time_s": _finite(data.get("travel_time_s")),
+            "steps": data.get("steps"), "time_s": _finite(data.get("time_s")),
+            "min_distance_m": _finite(data.get("min_distance_m")),
+            "detail": data.get("detail") or "", "collided_with": data.get("collided_with"),
+            "events": list(data.get("events") or []),
+        }
+    try:
+        trace_row = None
+        if trace is not None:
+            trace_row = Trace(path=trace.path, blob=trace.blob, size_bytes=trace.size_bytes,
+                              sha256=trace.sha256)
+            session.add(trace_row)
+            session.flush()
+        episode = Episode(batch_id=batch_id, run_index=run_index, seed=int(seed), wall_s=wall_s,
+                          trace_id=None if trace_row is None else trace_row.id, **fields)
+        session.add(episode)
+        session.commit()
+    except IntegrityError:
+        session.rollback()
+        already = session.scalar(select(Episode.id).where(Episode.batch_id == batch_id,
+                                                          Episode.run_index == run_index))
+        if already is not None:  # a concurrent writer recorded it first
+            return None
+        raise
+    return episode
+
+
+def done_run_indices(*, session: Session, batch_id: int) -> set[int]:
+    """The run indices of a batch already recorded (errors included)."""
+    return set(session.scalars(select(Episode.run_index).where(Episode.batch_id == batch_id)))
+
+
+def batch_results(*, session: Session, batch_id: int, outcomes: Iterable[str] | None = None) -> list[Episode]:
+    """A batch's episodes in run order (optionally only some outcomes), traces loaded."""
+    stmt = (select(Episode).where(Episode.batch_id == batch_id)
+            .options(joinedload(Episode.trace)).order_by(Episode.run_index))
+    if outcomes is not None:
+        stmt = stmt.where(Episode.outcome.in_(list(outcomes)))
+    return list(session.scalars(stmt).unique())
+
+
+def outcome_counts(*, session: Session, batch_id: int) -> dict[str, int]:
+    stmt = (select(Episode.outcome, func.count()).where(Episode.batch_id == batch_id)
+            .group_by(Episode.outcome))
+    return {outcome: int(n) for outcome, n in session.execute(stmt)}
+
+
+def get_episode(*, session: Session, batch_id: int, run_index: int) -> Episode | None:
+    stmt = (select(Episode).where(Episode.batch_id == batch_id, Episode.run_index == run_index)
+            .options(joinedload(Episode.trace)))
+    return session.scalars(stmt).first()
+
+
+def paired_results(*, session: Session, batch_a: int, batch_b: int) -> list[tuple[Episode, Episode]]:
+    """Episodes of two batches that met the same seed, paired in run order (for McNemar)."""
+    a = {e.seed: e for e in batch_results(session=session, batch_id=batch_a)}
+    return [(a[e.seed], e) for e in batch_results(session=session, batch_id=batch_b) if e.seed in a]

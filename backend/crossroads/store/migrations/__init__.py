@@ -1,0 +1,1 @@
+"""Alembic migrations of the results store (applied by :func:`crossroads.store.open_store`)."""

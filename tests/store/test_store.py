@@ -1,0 +1,186 @@
+"""The results store on SQLite and PostgreSQL: migrations, CRUD helpers, constraints."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+from alembic.autogenerate import compare_metadata
+from alembic.runtime.migration import MigrationContext
+from sqlalchemy import func, inspect, select
+from sqlalchemy.exc import IntegrityError
+
+from crossroads.evaluation.episode import EpisodeResult
+from crossroads.evaluation.scenario import ScenarioSpec, content_hash, validate_scenario
+from crossroads.store import Store, StoreError, crud, open_store
+from crossroads.store.db import head_revision
+from crossroads.store.tables import Base, Episode, Scenario, Trace
+
+TABLES = {"scenarios", "policies", "batches", "episodes", "traces"}
+
+
+def make_spec(seed: int = 0, name: str = "store-test") -> ScenarioSpec:
+    return validate_scenario({"version": 1, "name": name, "intersection": "a_single_lane",
+                              "task": "left", "runs": 5, "seed": seed}, check_references=False)
+
+
+def make_batch(store: Store, *, runs: int = 5, seed: int = 0) -> int:
+    with store.session() as s:
+        scenario = crud.get_or_create_scenario(session=s, spec=make_spec(seed))
+        policy = crud.get_or_create_policy(session=s, ref="rule")
+        return crud.create_batch(session=s, scenario=scenario, policy=policy, runs=runs).id
+
+
+def result(outcome: str = "passed", seed: int = 1, **kw: Any) -> EpisodeResult:
+    fields: dict[str, Any] = dict(seed=seed, outcome=outcome, steps=80, time_s=8.0,
+                                  travel_time_s=3.5 if outcome == "passed" else None,
+                                  min_distance_m=4.25, events=[{"t": 0.0, "event": "path", "value": 0}])
+    fields.update(kw)
+    return EpisodeResult(**fields)
+
+
+def test_migrations_create_every_table_at_head(store: Store) -> None:
+    assert TABLES <= set(inspect(store.engine).get_table_names())
+    assert store.revision() == head_revision() is not None
+    with store.engine.connect() as conn:  # the migrations build exactly the tables' model
+        assert compare_metadata(MigrationContext.configure(conn), Base.metadata) == []
+
+
+def test_opening_again_is_a_no_op(db_url: str) -> None:
+    for _ in range(2):
+        with open_store(db_url) as store:
+            assert store.revision() == head_revision()
+
+
+def test_sqlite_runs_in_wal_mode_with_foreign_keys(tmp_path: Path) -> None:
+    with open_store(f"sqlite:///{tmp_path / 'sub' / 'x.db'}") as store, store.engine.connect() as conn:
+        assert conn.exec_driver_sql("PRAGMA journal_mode").scalar() == "wal"
+        assert conn.exec_driver_sql("PRAGMA foreign_keys").scalar() == 1
+
+
+def test_unreachable_database_is_a_clear_error() -> None:
+    with pytest.raises(StoreError, match="cannot open the store"):
+        open_store("postgresql://postgres@127.0.0.1:1/nothing", connect_args={"connect_timeout": 2})
+
+
+def test_scenarios_and_policies_are_content_addressed(store: Store, tmp_path: Path) -> None:
+    with store.session() as s:
+        a = crud.get_or_create_scenario(session=s, spec=make_spec(1))
+        again = crud.get_or_create_scenario(session=s, spec=make_spec(1))
+        other = crud.get_or_create_scenario(session=s, spec=make_spec(2))
+        assert a.id == again.id != other.id
+        assert a.content_hash == content_hash(make_spec(1)) and a.spec["seed"] == 1
+        assert crud.scenario_spec(scenario=a) == make_spec(1)
+
+        rule = crud.get_or_create_policy(session=s, ref="rule")
+        assert (rule.kind, rule.file_hash, rule.name) == ("builtin", "builtin:rule", "rule")
+        assert crud.get_or_create_policy(session=s, ref="rule").id == rule.id
+
+        ckpt = tmp_path / "apg.pt"
+        ckpt.write_bytes(b"weights")
+        (tmp_path / "apg.card.json").write_text('{"algorithm": "APG"}')
+        p = crud.get_or_create_policy(session=s, ref=str(ckpt))
+        assert p.kind == "checkpoint" and p.file_hash.startswith("sha256:") and len(p.file_hash) == 71
+        assert p.card == {"algorithm": "APG"} and p.name == "apg"
+
+
+def test_duplicate_scenario_hash_is_refused(store: Store) -> None:
+    spec = make_spec(3)
+    with store.session() as s:
+        crud.get_or_create_scenario(session=s, spec=spec)
+        s.add(Scenario(name="dup", content_hash=content_hash(spec), spec={}))
+        with pytest.raises(IntegrityError):
+            s.commit()
+
+
+def test_batch_lifecycle_and_listing(store: Store) -> None:
+    batch_id = make_batch(store, runs=3, seed=4)
+    with store.session() as s:
+        batch = crud.get_batch(session=s, batch_id=batch_id)
+        assert batch is not None and batch.status == "queued" and batch.base_seed == 4
+        assert batch.scenario.name == "store-test" and batch.policy.ref == "rule"
+        running = crud.set_batch_status(session=s, batch_id=batch_id, status="running", workers=2,
+                                        executor="local")
+        assert running.started_at is not None and running.finished_at is None and running.workers == 2
+        done = crud.set_batch_status(session=s, batch_id=batch_id, status="done")
+        assert done.finished_at is not None and done.finished_at >= done.started_at
+        assert batch_id in [b.id for b in crud.list_batches(session=s, status="done")]
+        assert batch_id not in [b.id for b in crud.list_batches(session=s, status="queued")]
+        with pytest.raises(ValueError, match="status"):
+            crud.set_batch_status(session=s, batch_id=batch_id, status="sleeping")
+
+
+def test_record_episode_is_idempotent_and_complete(store: Store) -> None:
+    batch_id = make_batch(store, seed=5)
+    with store.session() as s:
+        first = crud.record_episode(session=s, batch_id=batch_id, run_index=0, seed=11,
+                                    result=result(seed=11), wall_s=0.5)
+        assert first is not None
+        # the same run again (a resumed batch, a second runner): not recorded, not counted
+        assert crud.record_episode(session=s, batch_id=batch_id, run_index=0, seed=11,
+                                   result=result("collision", seed=11)) is None
+        crud.record_episode(session=s, batch_id=batch_id, run_index=2, seed=13,
+                            result=result("timeout", seed=13, min_distance_m=math.inf))
+        crud.record_episode(session=s, batch_id=batch_id, run_index=1, seed=12,
+                            error="SumoError: connection lost",
+                            trace=crud.TraceRef(size_bytes=3, sha256="0" * 64, path="/t/1.trace.npz"))
+        assert crud.done_run_indices(session=s, batch_id=batch_id) == {0, 1, 2}
+        assert crud.outcome_counts(session=s, batch_id=batch_id) == {"passed": 1, "timeout": 1, "error": 1}
+        rows = crud.batch_results(session=s, batch_id=batch_id)
+        assert [r.run_index for r in rows] == [0, 1, 2]
+        assert rows[0].outcome == "passed" and rows[0].travel_time_s == 3.5
+        assert rows[0].events[0]["event"] == "path"
+        assert rows[1].error_message == "SumoError: connection lost"
+        assert rows[1].trace.path == "/t/1.trace.npz"
+        assert rows[2].min_distance_m is None  # nobody around: no distance, not infinity
+        with pytest.raises(ValueError):
+            crud.record_episode(session=s, batch_id=batch_id, run_index=3, seed=1)
+
+
+def test_episode_unique_per_batch_and_run(store: Store) -> None:
+    batch_id = make_batch(store, seed=6)
+    with store.session() as s:
+        crud.record_episode(session=s, batch_id=batch_id, run_index=0, seed=1, result=result())
+        s.add(Episode(batch_id=batch_id, run_index=0, seed=1, outcome="passed", detail="", events=[]))
+        with pytest.raises(IntegrityError):
+            s.commit()
+        s.rollback()
+        assert s.scalar(select(func.count()).select_from(Episode).where(Episode.batch_id == batch_id)) == 1
+
+
+def test_constraints_hold(store: Store) -> None:
+    batch_id = make_batch(store, seed=7)
+    with store.session() as s:
+        s.add(Episode(batch_id=batch_id, run_index=0, seed=1, outcome="flying", detail="", events=[]))
+        with pytest.raises(IntegrityError):
+            s.commit()
+        s.rollback()
+        s.add(Episode(batch_id=987654, run_index=0, seed=1, outcome="passed", detail="", events=[]))
+        with pytest.raises(IntegrityError):  # foreign keys are enforced (SQLite too)
+            s.commit()
+
+
+def test_a_failed_episode_write_leaves_nothing_behind(store: Store) -> None:
+    with store.session() as s:
+        traces_before = s.scalar(select(func.count()).select_from(Trace))
+        with pytest.raises(IntegrityError):  # no such batch: the trace row must not stay either
+            crud.record_episode(session=s, batch_id=987654, run_index=0, seed=1, result=result(),
+                                trace=crud.TraceRef(size_bytes=1, sha256="f" * 64, path="/x"))
+        s.rollback()
+        assert s.scalar(select(func.count()).select_from(Trace)) == traces_before
+
+
+def test_paired_results_match_seeds(store: Store) -> None:
+    a, b = make_batch(store, seed=8), make_batch(store, seed=8)
+    with store.session() as s:
+        for batch_id, outcome in ((a, "passed"), (b, "collision")):
+            for i in range(3):
+                crud.record_episode(session=s, batch_id=batch_id, run_index=i, seed=100 + i,
+                                    result=result(outcome, seed=100 + i))
+        pairs = crud.paired_results(session=s, batch_a=a, batch_b=b)
+        assert [(x.seed, x.outcome, y.outcome) for x, y in pairs] == [
+            (100 + i, "passed", "collision") for i in range(3)]
+        assert crud.delete_batch(session=s, batch_id=b)
+        assert crud.batch_results(session=s, batch_id=b) == []
