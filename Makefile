@@ -9,6 +9,7 @@ serve:
 
 test:
 	@bash scripts/setup.sh --test
+	.venv/bin/ruff check --quiet .
 	.venv/bin/python -m pytest $(PYTEST_ARGS)
 
 setup:
