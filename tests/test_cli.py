@@ -32,7 +32,7 @@ def test_net_build_writes_a_sumo_network(tmp_path: Path) -> None:
     result = crossroads("net", "build", name, "-o", str(tmp_path))
     assert result.returncode == 0, result.stderr
     out = Path(result.stdout.strip())
-    assert out.parent == tmp_path and out.name.endswith(".net.xml")
+    assert out.parent == tmp_path and out.name == f"{name}.net.xml"
     assert "<tlLogic" in out.read_text()
 
 

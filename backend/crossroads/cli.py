@@ -104,9 +104,11 @@ def net_build(
     """Build an intersection into a SUMO network (netconvert), cached by the spec's hash."""
     from crossroads.network import catalogue
 
-    net = catalogue.build(Path(ref) if ref.endswith((".yaml", ".yml")) else ref)
+    source = Path(ref) if ref.endswith((".yaml", ".yml")) else ref
+    spec = catalogue.load_spec(source)
+    net = catalogue.build(source)
     out.mkdir(parents=True, exist_ok=True)
-    target = out / net.name
+    target = out / f"{spec.name}.net.xml"
     shutil.copyfile(net, target)
     typer.echo(str(target))
 
