@@ -322,5 +322,35 @@ def report(
         typer.echo(f"csv: {csv}")
 
 
+@app.command()
+@reports_errors
+def view(
+    traces: Annotated[list[Path], typer.Argument(metavar="TRACE.npz...", help="stored episode traces")],
+    host: Annotated[str, typer.Option(help="interface to listen on")] = "127.0.0.1",
+    port: Annotated[int, typer.Option(help="TCP port (0: any free port)")] = 8080,
+    net: Annotated[str | None, typer.Option(metavar="NAME|NET.net.xml",
+                                            help="network to draw (default: the trace's own)")] = None,
+    autoplay: Annotated[bool, typer.Option(help="start playing when a tab opens")] = False,
+) -> None:
+    """Play stored episodes in the 3D view (viser); every browser tab gets its own player."""
+    import time
+
+    from crossroads.viz.playback import PlaybackServer
+
+    for trace in traces:
+        if not trace.is_file():
+            typer.secho(f"error: trace {str(trace)!r} does not exist", err=True, fg=typer.colors.RED)
+            raise typer.Exit(code=2)
+    app_ = PlaybackServer(traces, host=host, port=port, net=net, autoplay=autoplay)
+    typer.echo(f"Crossroads 3D view on {app_.url}  ({len(traces)} episode(s); Ctrl-C to stop)")
+    try:
+        while True:
+            time.sleep(1.0)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        app_.stop()
+
+
 if __name__ == "__main__":  # pragma: no cover
     app()
