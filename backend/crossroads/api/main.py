@@ -1,28 +1,74 @@
-"""The Crossroads API: a FastAPI app built from Settings; routers per resource in routes/."""
+"""The Crossroads API: a FastAPI app built from Settings; routers per resource in routes/.
+
+The lifespan opens (and migrates) the results store named by the settings and starts the batch
+job registry; on shutdown it cancels the running batches and closes the store.
+"""
 
 from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
 
 from fastapi import FastAPI, Request
 from fastapi.responses import JSONResponse
 
 from crossroads import __version__
-from crossroads.api.routes import health, intersections
+from crossroads.api.deps import ApiOptions
+from crossroads.api.jobs import JobRegistry
+from crossroads.api.routes import (
+    batches,
+    episodes,
+    health,
+    intersections,
+    policies,
+    reports,
+    scenarios,
+    uploads,
+)
+from crossroads.evaluation.policies import PolicyError
 from crossroads.network.junction import JunctionError
 from crossroads.network.resolve import NetworkNotFoundError
 from crossroads.settings import Settings
+from crossroads.store import open_store
 from crossroads.validation import SpecError
 
+SHUTDOWN_WAIT_S = 10.0  # [s] how long shutdown waits for cancelled batches to stop
 
-def create_app(settings: Settings | None = None) -> FastAPI:
+
+@asynccontextmanager
+async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+    settings: Settings = app.state.settings
+    settings.data_dir.mkdir(parents=True, exist_ok=True)
+    store = open_store(settings.database_url)
+    jobs = JobRegistry(store, data_dir=settings.data_dir, ray_address=settings.ray_address)
+    app.state.store, app.state.jobs = store, jobs
+    try:
+        yield
+    finally:
+        jobs.shutdown(SHUTDOWN_WAIT_S)
+        app.state.store = app.state.jobs = None
+        store.close()
+
+
+def create_app(settings: Settings | None = None, options: ApiOptions | None = None) -> FastAPI:
     settings = settings or Settings()
     app = FastAPI(
         title="Crossroads",
         version=__version__,
         summary="Scenario studio and evaluator for driving policies at signalized intersections",
+        lifespan=lifespan,
     )
     app.state.settings = settings
+    app.state.options = options or ApiOptions()
+    app.state.store = app.state.jobs = None
     app.include_router(health.router, prefix="/api")
+    app.include_router(uploads.router, prefix="/api")  # before /intersections/{name}
     app.include_router(intersections.router, prefix="/api")
+    app.include_router(scenarios.router, prefix="/api")
+    app.include_router(policies.router, prefix="/api")
+    app.include_router(batches.router, prefix="/api")
+    app.include_router(episodes.router, prefix="/api")
+    app.include_router(reports.router, prefix="/api")
 
     # Domain errors become clear HTTP answers in one place, not in every route.
     @app.exception_handler(NetworkNotFoundError)
@@ -31,6 +77,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @app.exception_handler(SpecError)
     @app.exception_handler(JunctionError)
+    @app.exception_handler(PolicyError)
     async def _unprocessable(_: Request, exc: Exception) -> JSONResponse:
         return JSONResponse(status_code=422, content={"detail": str(exc)})
 

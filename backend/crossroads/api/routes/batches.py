@@ -1,0 +1,194 @@
+"""Batches: start (202; it runs in the background), list, read with progress and summary,
+cancel, progress as Server-Sent Events, and the episodes of a batch."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from collections.abc import AsyncIterator
+from typing import Annotated, Any
+
+from fastapi import APIRouter, HTTPException, Query, Request, status
+from fastapi.responses import StreamingResponse
+from sqlalchemy.orm import Session
+
+from crossroads.api.deps import (
+    JobsDep,
+    OptionsDep,
+    SessionDep,
+    SettingsDep,
+    StoreDep,
+    unprocessable,
+)
+from crossroads.api.jobs import JobRegistry
+from crossroads.api.routes.episodes import episode_public
+from crossroads.api.routes.policies import models_dir, policy_ref
+from crossroads.api.routes.scenarios import parse_scenario
+from crossroads.api.schemas import (
+    BatchAccepted,
+    BatchCreate,
+    BatchProgress,
+    BatchPublic,
+    BatchSummary,
+    EpisodePublic,
+)
+from crossroads.evaluation.batch import summarize_batch
+from crossroads.store import Store, crud
+from crossroads.store.crud import FINISHED_STATUSES
+from crossroads.store.tables import BATCH_STATUSES, Batch
+
+router = APIRouter(prefix="/batches", tags=["batches"])
+
+SSE_POLL_S = 0.25  # [s] how often the event stream looks at a running batch
+SSE_HEARTBEAT_S = 15.0  # [s] a comment line keeps proxies from closing a quiet stream
+
+
+def _get(session: Session, batch_id: int) -> Batch:
+    batch = crud.get_batch(session=session, batch_id=batch_id)
+    if batch is None:
+        raise HTTPException(status_code=404, detail=f"no batch {batch_id}")
+    return batch
+
+
+def _progress(batch: Batch, recorded: int, passed: int, errors: int, jobs: JobRegistry) -> BatchProgress:
+    live = jobs.live_progress(batch.id)
+    if live is not None and live.total:
+        recorded, passed, errors = live.done, live.passed, live.errors
+    total = batch.runs
+    return BatchProgress(done=recorded, total=total, passed=passed, errors=errors,
+                         fraction=recorded / total if total else 1.0)
+
+
+def _public(session: Session, batch: Batch, jobs: JobRegistry, summary: BatchSummary | None = None) -> BatchPublic:
+    counts = crud.outcome_counts(session=session, batch_id=batch.id)
+    progress = _progress(batch, sum(counts.values()), counts.get("passed", 0), counts.get("error", 0), jobs)
+    return BatchPublic(
+        id=batch.id, scenario_id=batch.scenario_id, scenario=batch.scenario.name, policy=batch.policy.name,
+        status=batch.status, runs=batch.runs, traces=batch.traces, workers=batch.workers,
+        executor=batch.executor, error=batch.error, created_at=batch.created_at,
+        started_at=batch.started_at, finished_at=batch.finished_at, progress=progress, summary=summary)
+
+
+def _summary(store: Store, batch_id: int) -> BatchSummary:
+    data = summarize_batch(store, batch_id).to_json()
+    return BatchSummary.model_validate({k: data[k] for k in BatchSummary.model_fields})
+
+
+@router.post("", status_code=status.HTTP_202_ACCEPTED)
+def start_batch(body: BatchCreate, session: SessionDep, store: StoreDep, jobs: JobsDep,
+                settings: SettingsDep, options: OptionsDep) -> BatchAccepted:
+    """Store a batch and start it in the background; answers at once with its id (202).
+    Follow it with GET /batches/{id} or the event stream GET /batches/{id}/events."""
+    if (body.scenario_id is None) == (body.scenario is None):
+        raise unprocessable([("scenario_id", "give exactly one of scenario_id (a stored scenario) "
+                                             "and scenario (one given inline)")])
+    ref = policy_ref(body.policy, models_dir(options.models_dir))
+    if body.scenario is not None:
+        spec = parse_scenario(body.scenario, settings, prefix=("body", "scenario"))
+        scenario = crud.get_or_create_scenario(session=session, spec=spec)
+    else:
+        scenario = crud.get_scenario(session=session, scenario_id=body.scenario_id)
+        if scenario is None:
+            raise unprocessable([("scenario_id", f"no scenario {body.scenario_id}")])
+        spec = parse_scenario(scenario.spec, settings, prefix=("body", "scenario_id"))
+    policy = crud.get_or_create_policy(session=session, ref=ref)
+    batch = crud.create_batch(session=session, scenario=scenario, policy=policy,
+                              runs=body.runs or spec.runs, traces=body.traces,
+                              base_dir=settings.data_dir, workers=body.workers)
+    jobs.submit(batch.id, workers=body.workers)
+    return BatchAccepted(id=batch.id, status=batch.status, url=f"/api/batches/{batch.id}",
+                         events=f"/api/batches/{batch.id}/events")
+
+
+@router.get("")
+def list_batches(
+    session: SessionDep, jobs: JobsDep,
+    status_: Annotated[list[str] | None, Query(alias="status", description="only these statuses")] = None,
+    scenario_id: Annotated[int | None, Query(ge=1)] = None,
+    limit: Annotated[int, Query(ge=1, le=1000)] = 100,
+    offset: Annotated[int, Query(ge=0)] = 0,
+) -> list[BatchPublic]:
+    """Batches, newest first (progress, no summary)."""
+    for s in status_ or []:
+        if s not in BATCH_STATUSES:
+            raise unprocessable([("status", f"unknown status {s!r}; one of {', '.join(BATCH_STATUSES)}")],
+                                prefix=("query",))
+    rows = crud.list_batches(session=session, status=status_, scenario_id=scenario_id,
+                             limit=limit, offset=offset)
+    return [_public(session, b, jobs) for b in rows]
+
+
+@router.get("/{batch_id}")
+def get_batch(batch_id: int, session: SessionDep, store: StoreDep, jobs: JobsDep) -> BatchPublic:
+    """A batch: status, progress and the summary of what is recorded so far."""
+    batch = _get(session, batch_id)
+    return _public(session, batch, jobs, _summary(store, batch_id))
+
+
+@router.post("/{batch_id}/cancel", status_code=status.HTTP_202_ACCEPTED)
+def cancel_batch(batch_id: int, session: SessionDep, jobs: JobsDep) -> dict[str, Any]:
+    """Stop a running batch soon (runs in flight are dropped). 409 when it has ended already."""
+    batch = _get(session, batch_id)
+    if batch.status in FINISHED_STATUSES:
+        raise HTTPException(status_code=409, detail=f"batch {batch_id} is {batch.status} already")
+    if not jobs.cancel(batch_id):  # no runner in this process (a previous server's batch)
+        crud.set_batch_status(session=session, batch_id=batch_id, status="cancelled")
+        return {"id": batch_id, "status": "cancelled"}
+    return {"id": batch_id, "status": "cancelling"}
+
+
+def _sse(event: str, data: dict[str, Any]) -> str:
+    return f"event: {event}\ndata: {json.dumps(data, separators=(',', ':'))}\n\n"
+
+
+def _snapshot(store: Store, batch_id: int, jobs: JobRegistry) -> tuple[dict[str, Any], bool]:
+    """The progress event of a batch and whether it has ended (store read in a worker thread)."""
+    with store.session() as session:
+        batch = _get(session, batch_id)
+        public = _public(session, batch, jobs)
+        ended = batch.status in FINISHED_STATUSES and jobs.live_progress(batch_id) is None
+    return {"id": batch_id, "status": public.status, **public.progress.model_dump()}, ended
+
+
+@router.get("/{batch_id}/events", response_class=StreamingResponse,
+            responses={200: {"content": {"text/event-stream": {}},
+                             "description": "`progress` events, then one `end` event with the summary"}})
+async def batch_events(batch_id: int, request: Request, store: StoreDep, jobs: JobsDep) -> StreamingResponse:
+    """Server-Sent Events: a ``progress`` event whenever the batch moves, then ``end`` (its
+    status and summary) when it has finished; the stream then closes."""
+    first = await asyncio.to_thread(_snapshot, store, batch_id, jobs)  # a 404 comes before the stream
+
+    async def stream() -> AsyncIterator[str]:
+        last: dict[str, Any] | None = None
+        quiet_s = 0.0
+        current = first
+        while True:
+            data, ended = current
+            if data != last:
+                yield _sse("progress", data)
+                last, quiet_s = data, 0.0
+            if ended:
+                summary = await asyncio.to_thread(_summary, store, batch_id)
+                yield _sse("end", {"id": batch_id, "status": data["status"], "summary": summary.model_dump()})
+                return
+            if await request.is_disconnected():
+                return
+            await asyncio.sleep(SSE_POLL_S)
+            quiet_s += SSE_POLL_S
+            if quiet_s >= SSE_HEARTBEAT_S:
+                yield ": keep-alive\n\n"
+                quiet_s = 0.0
+            current = await asyncio.to_thread(_snapshot, store, batch_id, jobs)
+
+    return StreamingResponse(stream(), media_type="text/event-stream",
+                             headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
+
+
+@router.get("/{batch_id}/episodes")
+def batch_episodes(batch_id: int, session: SessionDep,
+                   outcome: Annotated[list[str] | None, Query(description="only these outcomes")] = None,
+                   ) -> list[EpisodePublic]:
+    """The recorded episodes of a batch, in run order."""
+    _get(session, batch_id)
+    rows = crud.batch_results(session=session, batch_id=batch_id, outcomes=outcome)
+    return [episode_public(e) for e in rows]

@@ -1,0 +1,65 @@
+"""Policies: the built-in rule-based controller and the checkpoints shipped under models/."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from fastapi import APIRouter
+
+from crossroads.api.deps import OptionsDep, unprocessable
+from crossroads.api.schemas import PolicyPublic
+from crossroads.evaluation.policies import BUILTIN_POLICIES
+from crossroads.store.crud import CARD_SUFFIXES
+
+router = APIRouter(prefix="/policies", tags=["policies"])
+
+REPO_MODELS_DIR = Path(__file__).resolve().parents[4] / "models"  # <repo>/backend/crossroads/api/routes
+
+
+def models_dir(configured: Path | None) -> Path:
+    return configured if configured is not None else REPO_MODELS_DIR
+
+
+def _card(checkpoint: Path) -> dict[str, Any] | None:
+    """The model card beside a checkpoint (``<stem>.card.json`` or ``<stem>.json``), if readable."""
+    for suffix in CARD_SUFFIXES:
+        candidate = checkpoint.with_name(checkpoint.stem + suffix)
+        if candidate.is_file():
+            try:
+                card = json.loads(candidate.read_text(encoding="utf-8"))
+            except (OSError, ValueError):
+                return None
+            return card if isinstance(card, dict) else None
+    return None
+
+
+def available_policies(directory: Path) -> list[PolicyPublic]:
+    """``rule`` first, then every ``<name>.pt`` of ``directory`` (sorted) with its card."""
+    found = [PolicyPublic(name=name, kind="builtin") for name in BUILTIN_POLICIES]
+    if directory.is_dir():
+        for path in sorted(directory.glob("*.pt")):
+            if not path.is_file() or path.stem in BUILTIN_POLICIES:
+                continue
+            card = _card(path)
+            found.append(PolicyPublic(name=path.stem, kind="checkpoint", file=path.name,
+                                      size_bytes=path.stat().st_size, card=card))
+    return found
+
+
+def policy_ref(name: str, directory: Path, *, field: str = "policy") -> str:
+    """What the batch runner takes for a policy name: ``rule`` or the checkpoint's path.
+
+    Only names listed by GET /policies are accepted: a client never names a server path."""
+    for policy in available_policies(directory):
+        if policy.name == name:
+            return name if policy.kind == "builtin" else str(directory / (policy.file or ""))
+    known = ", ".join(p.name for p in available_policies(directory))
+    raise unprocessable([(field, f"unknown policy {name!r}; known: {known}")])
+
+
+@router.get("")
+def list_policies(options: OptionsDep) -> list[PolicyPublic]:
+    """The policies a batch can run: ``rule`` and the checkpoints (models/*.pt) with their cards."""
+    return available_policies(models_dir(options.models_dir))

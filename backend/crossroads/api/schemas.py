@@ -1,0 +1,137 @@
+"""Request and response models of the API, one family per resource.
+
+Scenario bodies themselves are validated by :class:`~crossroads.evaluation.scenario.ScenarioSpec`
+(one definition of a scenario for files, the CLI and the API); these models wrap them.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+_IN = ConfigDict(extra="forbid", strict=True)  # what a client sends: no unknown keys, no coercion
+
+
+# --- scenarios ------------------------------------------------------------------------------------
+
+
+class Problem(BaseModel):
+    field: str = Field(description="dotted path of the faulty field ('' for the whole body)")
+    message: str
+
+
+class ScenarioValidation(BaseModel):
+    valid: bool
+    problems: list[Problem]
+
+
+class ScenarioPublic(BaseModel):
+    id: int
+    name: str
+    content_hash: str = Field(description="sha256 of the canonical spec JSON: the scenario's identity")
+    spec: dict[str, Any] = Field(description="the scenario, every default filled in")
+    created_at: datetime
+    batches: int = Field(description="batches run with this scenario (such a scenario is read-only)")
+
+
+# --- policies -------------------------------------------------------------------------------------
+
+
+class PolicyPublic(BaseModel):
+    name: str = Field(description="what POST /batches takes as `policy`")
+    kind: Literal["builtin", "checkpoint"]
+    file: str | None = Field(None, description="checkpoint file, relative to the models directory")
+    size_bytes: int | None = None
+    card: dict[str, Any] | None = Field(None, description="the model card, when one lies beside it")
+
+
+# --- batches --------------------------------------------------------------------------------------
+
+
+class BatchCreate(BaseModel):
+    """A batch: a stored scenario (``scenario_id``) or one given inline (``scenario``), a policy
+    and how many seeded runs."""
+
+    model_config = _IN
+
+    scenario_id: int | None = Field(None, ge=1, description="id of a stored scenario")
+    scenario: dict[str, Any] | None = Field(
+        None, description="a scenario given inline (stored like POST /scenarios)")
+    policy: str = Field("rule", min_length=1, max_length=200,
+                        description="'rule' or the name of a checkpoint listed by GET /policies")
+    runs: int | None = Field(None, ge=1, le=100_000, description="episodes; default: the scenario's runs")
+    workers: int | None = Field(None, ge=1, le=256, description="worker processes; default: one per CPU")
+    traces: Literal["all", "failed", "none"] = Field(
+        "failed", description="which episodes keep their trace ('failed': every outcome but passed)")
+
+
+class BatchAccepted(BaseModel):
+    id: int
+    status: str
+    url: str
+    events: str
+
+
+class BatchProgress(BaseModel):
+    done: int = Field(description="runs recorded (errors included)")
+    total: int
+    passed: int
+    errors: int
+    fraction: float
+
+
+class BatchSummary(BaseModel):
+    """Figures over the recorded episodes: pass rate = passed / (recorded − errors), with its
+    Wilson 95 % interval; travel time over the passed episodes [s]."""
+
+    recorded: int
+    judged: int
+    passed: int
+    errors: int
+    pass_rate: float | None
+    wilson_low: float
+    wilson_high: float
+    travel_time_mean_s: float | None
+    travel_time_std_s: float | None
+    outcome_counts: dict[str, int]
+
+
+class BatchPublic(BaseModel):
+    id: int
+    scenario_id: int
+    scenario: str
+    policy: str
+    status: Literal["queued", "running", "done", "cancelled", "failed"]
+    runs: int
+    traces: str
+    workers: int | None
+    executor: str | None
+    error: str | None
+    created_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+    progress: BatchProgress
+    summary: BatchSummary | None = Field(None, description="only in GET /batches/{id}")
+
+
+# --- episodes -------------------------------------------------------------------------------------
+
+
+class EpisodePublic(BaseModel):
+    batch_id: int
+    run_index: int
+    seed: int
+    outcome: str
+    passed: bool
+    travel_time_s: float | None
+    steps: int | None
+    time_s: float | None
+    min_distance_m: float | None
+    detail: str
+    collided_with: str | None
+    events: list[Any]
+    error_message: str | None
+    wall_s: float | None
+    has_trace: bool

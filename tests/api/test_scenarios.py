@@ -1,0 +1,151 @@
+"""Scenarios: create, read, update, delete, validate, the JSON Schema; invalid input is a 422
+naming the field, and nothing of it is stored."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from crossroads.store import crud
+
+
+def _count(client: TestClient) -> int:
+    return len(client.get("/api/scenarios").json())
+
+
+def test_create_read_update_delete(client: TestClient, tiny_scenario: dict[str, Any]) -> None:
+    tiny_scenario["name"] = "crud-me"
+    created = client.post("/api/scenarios", json=tiny_scenario)
+    assert created.status_code == 201, created.text
+    body = created.json()
+    assert body["name"] == "crud-me" and len(body["content_hash"]) == 64 and body["batches"] == 0
+    assert body["spec"]["rho"] == 0.6, "defaults are filled in"
+    sid = body["id"]
+
+    again = client.post("/api/scenarios", json=dict(reversed(list(tiny_scenario.items()))))
+    assert again.status_code == 200 and again.json()["id"] == sid, "same content: same row"
+    assert client.get(f"/api/scenarios/{sid}").json()["content_hash"] == body["content_hash"]
+    assert sid in [s["id"] for s in client.get("/api/scenarios").json()]
+
+    changed = {**tiny_scenario, "task": "right"}
+    updated = client.put(f"/api/scenarios/{sid}", json=changed)
+    assert updated.status_code == 200, updated.text
+    assert updated.json()["spec"]["task"] == "right"
+    assert updated.json()["content_hash"] != body["content_hash"]
+
+    assert client.delete(f"/api/scenarios/{sid}").status_code == 204
+    assert client.get(f"/api/scenarios/{sid}").status_code == 404
+    assert client.delete(f"/api/scenarios/{sid}").status_code == 404
+
+
+@pytest.mark.parametrize(("change", "loc"), [
+    ({"runs": "5"}, ("runs",)),                                    # wrong type (no coercion)
+    ({"runs": -3}, ("runs",)),                                     # negative runs
+    ({"runs": 2.5}, ("runs",)),
+    ({"colour": "red"}, ("colour",)),                              # unknown field
+    ({"traffic": {"vehicles_per_hour": 100, "trucks": 3}}, ("traffic", "trucks")),
+    ({"task": "sideways"}, ("task",)),
+    ({"version": 2}, ("version",)),
+    ({"name": "has spaces"}, ("name",)),
+    ({"intersection": "atlantis"}, ("intersection",)),             # unknown catalogue name
+    ({"intersection": 5}, ("intersection",)),
+    ({"intersection": {"net": "/etc/hosts.net.xml"}}, ("intersection", "net")),  # not an upload
+    ({"intersection": {"net": "uploads/../../x.net.xml"}}, ("intersection", "net")),
+    ({"intersection": {"net": "uploads/nothing.net.xml"}}, ("intersection", "net")),
+    ({"abnormal": {"overspeed": {"share": 1.5, "excess": 0.1}}}, ("abnormal", "overspeed", "share")),
+    ({"warmup_s": float("nan")}, None),                           # not even JSON: rejected somewhere
+    ({"seed": -1}, ("seed",)),
+    ({"perception_noise": "yes"}, ("perception_noise",)),
+])
+def test_invalid_scenario_names_the_field_and_stores_nothing(
+        client: TestClient, tiny_scenario: dict[str, Any], field_named: Any,
+        change: dict[str, Any], loc: tuple[str, ...] | None) -> None:
+    before = _count(client)
+    data = {**tiny_scenario, **change}
+    if loc is None:
+        response = client.post("/api/scenarios", content=b'{"version": 1, "warmup_s": NaN}',
+                               headers={"content-type": "application/json"})
+        assert response.status_code == 422
+    else:
+        response = client.post("/api/scenarios", json=data)
+        assert field_named(response, *loc), response.json()
+        check = client.post("/api/scenarios/validate", json=data).json()
+        assert check["valid"] is False and ".".join(loc) in [p["field"] for p in check["problems"]]
+    assert _count(client) == before
+
+
+@pytest.mark.parametrize("field", ["version", "name", "intersection", "task"])
+def test_missing_required_field(client: TestClient, tiny_scenario: dict[str, Any], field_named: Any,
+                                field: str) -> None:
+    del tiny_scenario[field]
+    assert field_named(client.post("/api/scenarios", json=tiny_scenario), field)
+
+
+@pytest.mark.parametrize("body", [[1, 2], "a string", None])
+def test_body_that_is_not_a_mapping(client: TestClient, body: Any) -> None:
+    response = client.post("/api/scenarios", json=body)
+    assert response.status_code == 422
+    assert response.json()["detail"][0]["loc"][0] == "body"
+
+
+def test_not_json_at_all(client: TestClient) -> None:
+    response = client.post("/api/scenarios", content=b"version: 1\n",
+                           headers={"content-type": "application/json"})
+    assert response.status_code == 422
+
+
+def test_validate_reports_every_problem(client: TestClient, tiny_scenario: dict[str, Any]) -> None:
+    assert client.post("/api/scenarios/validate", json=tiny_scenario).json() == {"valid": True, "problems": []}
+    bad = {**tiny_scenario, "runs": 0, "rho": 2.0, "extra": 1}
+    body = client.post("/api/scenarios/validate", json=bad).json()
+    assert body["valid"] is False
+    assert {p["field"] for p in body["problems"]} == {"runs", "rho", "extra"}
+    assert all(p["message"] for p in body["problems"])
+
+
+def test_schema(client: TestClient) -> None:
+    schema = client.get("/api/scenarios/schema").json()
+    assert schema["title"] == "Crossroads scenario"
+    assert {"version", "name", "intersection", "task"} <= set(schema["required"])
+    assert "abnormal" in schema["properties"]
+
+
+def test_update_invalid_changes_nothing(client: TestClient, tiny_scenario: dict[str, Any],
+                                        field_named: Any) -> None:
+    tiny_scenario["name"] = "keep-me"
+    sid = client.post("/api/scenarios", json=tiny_scenario).json()["id"]
+    before = client.get(f"/api/scenarios/{sid}").json()
+    assert field_named(client.put(f"/api/scenarios/{sid}", json={**tiny_scenario, "task": 3}), "task")
+    assert client.get(f"/api/scenarios/{sid}").json() == before
+    assert client.put("/api/scenarios/999999", json=tiny_scenario).status_code == 404
+    assert client.get("/api/scenarios/not-a-number").status_code == 422
+
+
+def test_update_to_an_existing_scenario_conflicts(client: TestClient, tiny_scenario: dict[str, Any]) -> None:
+    a = client.post("/api/scenarios", json={**tiny_scenario, "name": "twin-a"}).json()["id"]
+    client.post("/api/scenarios", json={**tiny_scenario, "name": "twin-b"})
+    response = client.put(f"/api/scenarios/{a}", json={**tiny_scenario, "name": "twin-b"})
+    assert response.status_code == 409
+
+
+def test_scenario_with_batches_is_read_only(client: TestClient, tiny_scenario: dict[str, Any]) -> None:
+    tiny_scenario["name"] = "has-results"
+    sid = client.post("/api/scenarios", json=tiny_scenario).json()["id"]
+    store = client.app.state.store
+    with store.session() as session:  # a queued batch, never run: enough to make it read-only
+        scenario = crud.get_scenario(session=session, scenario_id=sid)
+        policy = crud.get_or_create_policy(session=session, ref="rule")
+        crud.create_batch(session=session, scenario=scenario, policy=policy, runs=1)
+    assert client.get(f"/api/scenarios/{sid}").json()["batches"] == 1
+    assert client.put(f"/api/scenarios/{sid}", json={**tiny_scenario, "runs": 3}).status_code == 409
+    assert client.delete(f"/api/scenarios/{sid}").status_code == 409
+    assert client.get(f"/api/scenarios/{sid}").status_code == 200
+
+
+def test_policies_lists_rule_and_checkpoints_with_cards(client: TestClient) -> None:
+    policies = {p["name"]: p for p in client.get("/api/policies").json()}
+    assert policies["rule"]["kind"] == "builtin"
+    assert policies["fake"]["kind"] == "checkpoint" and policies["fake"]["file"] == "fake.pt"
+    assert policies["fake"]["card"] == {"algorithm": "APG", "iterations": 1}
