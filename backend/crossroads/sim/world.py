@@ -50,6 +50,7 @@ SPAWN_CLEARANCE_M = 6.0  # [m] participants this close to the ego's start are re
 SPAWN_CLEAR_AHEAD_S = 3.0  # [s] ...and those within this much driving time ahead on its lane
 FRONT_CORRIDOR_HALF_WIDTH_M = 1.75  # [m] "in front of the ego": within half a lane of its axis
 FRONT_LOOKAHEAD_M = 30.0  # [m] how far ahead the congestion check looks for a front vehicle
+FRONT_HEADING_TOLERANCE_RAD = math.pi / 4  # [rad] a front vehicle heads within this of the ego
 STOPPED_SPEED_MPS = 0.1  # [m/s] below this a vehicle counts as stopped
 ROUTE_MARGIN_S = 30.0  # [s] demand is drawn for warm-up + timeout + this margin
 
@@ -253,8 +254,10 @@ class World:
             c, s = math.cos(self.ego[4]), math.sin(self.ego[4])
             dx, dy = snap.x - self.ego[0], snap.y - self.ego[1]
             ahead, lateral = dx * c + dy * s, -dx * s + dy * c
+            # a front vehicle drives the ego's way: oncoming traffic waiting to turn is no queue
+            same_way = np.cos(snap.heading - self.ego[4]) > math.cos(FRONT_HEADING_TOLERANCE_RAD)
             front = (snap.kind != "pedestrian") & (ahead > 0) & (ahead < FRONT_LOOKAHEAD_M) & (
-                np.abs(lateral) < FRONT_CORRIDOR_HALF_WIDTH_M)
+                np.abs(lateral) < FRONT_CORRIDOR_HALF_WIDTH_M) & same_way
             if front.any():
                 row = np.flatnonzero(front)[np.argmin(ahead[front])]
                 if snap.speed[row] < STOPPED_SPEED_MPS:
