@@ -276,3 +276,16 @@ def project_onto_polyline(polyline: ArrayLike, point: ArrayLike) -> tuple[int, f
     cross = float(ab[i, 0] * (p[1] - a[i, 1]) - ab[i, 1] * (p[0] - a[i, 0]))
     s = float(arc_lengths(pts)[i] + t[i] * seg_len)
     return i, s, cross / seg_len
+
+
+def polygons_of(geometry: object) -> list:
+    """The shapely Polygons inside any geometry (Polygon, MultiPolygon, collections; else none)."""
+    from shapely.geometry import MultiPolygon, Polygon
+
+    if geometry is None or getattr(geometry, "is_empty", True):
+        return []
+    if isinstance(geometry, Polygon):
+        return [geometry]
+    if isinstance(geometry, MultiPolygon):
+        return list(geometry.geoms)
+    return [p for part in getattr(geometry, "geoms", []) for p in polygons_of(part)]

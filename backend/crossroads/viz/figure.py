@@ -21,10 +21,10 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import PathPatch
 from matplotlib.path import Path as MplPath
-from shapely.geometry import LineString, MultiPolygon, Polygon
+from shapely.geometry import LineString, Polygon
 from shapely.geometry.base import BaseGeometry
 
-from crossroads.geometry import arc_lengths, point_at
+from crossroads.geometry import polygons_of, arc_lengths, point_at
 from crossroads.network.model import Junction, Lane
 from crossroads.planning.routes import CandidatePath
 
@@ -39,19 +39,11 @@ VIEW_MARGIN_M = 8.0  # [m] around the candidates (or the junction) in the defaul
 JUNCTION_VIEW_RADIUS_M = 45.0  # [m] view half-size around the junction when no candidates are drawn
 
 
-def _polygons(geometry: BaseGeometry | None) -> list[Polygon]:
-    if geometry is None or geometry.is_empty:
-        return []
-    if isinstance(geometry, Polygon):
-        return [geometry]
-    if isinstance(geometry, MultiPolygon):
-        return list(geometry.geoms)
-    return [g for part in getattr(geometry, "geoms", []) for g in _polygons(part)]
 
 
 def _add_area(ax: Axes, geometry: BaseGeometry | None, **style: object) -> None:
     """Fill a (multi)polygon, holes included."""
-    for poly in _polygons(geometry):
+    for poly in polygons_of(geometry):
         rings = [np.asarray(poly.exterior.coords)] + [np.asarray(r.coords) for r in poly.interiors]
         verts = np.concatenate([r[:, :2] for r in rings])
         codes = np.concatenate([[MplPath.MOVETO] + [MplPath.LINETO] * (len(r) - 2) + [MplPath.CLOSEPOLY]

@@ -26,10 +26,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
-from shapely.geometry import LineString, MultiPolygon, Polygon
+from shapely.geometry import LineString
 from shapely.geometry.base import BaseGeometry
 
-from crossroads.geometry import arc_lengths, point_at
+from crossroads.geometry import polygons_of, arc_lengths, point_at
 from crossroads.network.model import Junction, Lane
 from crossroads.perception.sensors import Sensor, sector_polygon
 
@@ -123,21 +123,13 @@ class SceneData:
 # --- meshes from areas ----------------------------------------------------------------------------
 
 
-def _polygons(geometry: BaseGeometry | None) -> list[Polygon]:
-    if geometry is None or geometry.is_empty:
-        return []
-    if isinstance(geometry, Polygon):
-        return [geometry]
-    if isinstance(geometry, MultiPolygon):
-        return list(geometry.geoms)
-    return [p for part in getattr(geometry, "geoms", []) for p in _polygons(part)]
 
 
 def triangulate(geometry: BaseGeometry | None, z: float = 0.0) -> Mesh:
     """Triangles covering a (multi)polygon exactly, holes included (constrained Delaunay)."""
     if geometry is not None and not geometry.is_valid:
         geometry = shapely.make_valid(geometry)
-    polys = [p for p in _polygons(geometry) if p.area > 1e-9]
+    polys = [p for p in polygons_of(geometry) if p.area > 1e-9]
     if not polys:
         return EMPTY_MESH
     verts: list[np.ndarray] = []
