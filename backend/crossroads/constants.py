@@ -31,6 +31,9 @@ RED_S: Final = 40.0  # [s] red seen by the ego's approach
 CROSS_GREEN_S: Final = RED_S - YELLOW_S  # [s] (choice) cross axis G37/Y3, so the ego sees R40
 SIM_STEP_S: Final = 0.1  # [s] SUMO step and control period (Δt of f_ego)
 
+# Kinds of traffic participants, in the order of x_other (SPEC §4) and of every kind code.
+PARTICIPANT_KINDS: Final = ("vehicle", "cyclist", "pedestrian")
+
 # --- §3 Perception (Sec. IV-B) ------------------------------------------------------------------
 LIDAR_RANGE_M: Final = 70.0
 LIDAR_FOV_DEG: Final = 360.0

@@ -20,11 +20,13 @@ from crossroads.api.routes import (
     episodes,
     health,
     intersections,
+    playback,
     policies,
     reports,
     scenarios,
     uploads,
 )
+from crossroads.api.static import mount_frontend
 from crossroads.evaluation.policies import PolicyError
 from crossroads.network.junction import JunctionError
 from crossroads.network.resolve import NetworkNotFoundError
@@ -69,6 +71,7 @@ def create_app(settings: Settings | None = None, options: ApiOptions | None = No
     app.include_router(batches.router, prefix="/api")
     app.include_router(episodes.router, prefix="/api")
     app.include_router(reports.router, prefix="/api")
+    app.include_router(playback.router, prefix="/api")
 
     # Domain errors become clear HTTP answers in one place, not in every route.
     @app.exception_handler(NetworkNotFoundError)
@@ -81,4 +84,5 @@ def create_app(settings: Settings | None = None, options: ApiOptions | None = No
     async def _unprocessable(_: Request, exc: Exception) -> JSONResponse:
         return JSONResponse(status_code=422, content={"detail": str(exc)})
 
+    mount_frontend(app)  # last: its catch-all route must not shadow the API
     return app

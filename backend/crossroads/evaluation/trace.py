@@ -51,12 +51,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from crossroads.constants import EGO_STATE_DIM, OTHER_STATE_DIM, SIM_STEP_S
+from crossroads.constants import EGO_STATE_DIM, OTHER_STATE_DIM, PARTICIPANT_KINDS, SIM_STEP_S
 
 TRACE_VERSION = 1
 LIGHTS: tuple[str, ...] = ("green", "yellow", "red")
 SPEED_MODES: tuple[str, ...] = ("pass", "stop", "none")  # "none": a frame without a decision
-KINDS: tuple[str, ...] = ("vehicle", "cyclist", "pedestrian")
+KINDS: tuple[str, ...] = PARTICIPANT_KINDS
 ACTION_DIM = 2  # [Δδ, Δa]
 JSON_DECIMALS = 4  # decimals of floats in the JSON views (0.1 mm, 0.1 mrad)
 PARTICIPANT_FLOATS = ("x", "y", "heading", "speed", "length", "width")

@@ -43,6 +43,7 @@ from crossroads.constants import (
     N_PEDESTRIANS_OBSERVED,
     N_VEHICLES_OBSERVED,
     OTHER_STATE_DIM,
+    PARTICIPANT_KINDS,
     STATE_DIM,
     STEER_MAX,
     TRACK_STATE_DIM,
@@ -54,7 +55,7 @@ from crossroads.planning.routes import CandidatePath
 EGO = slice(0, EGO_STATE_DIM)
 TRACK = slice(EGO_STATE_DIM, EGO_STATE_DIM + TRACK_STATE_DIM)
 OTHERS = slice(EGO_STATE_DIM + TRACK_STATE_DIM, STATE_DIM)
-KINDS: tuple[str, ...] = ("vehicle", "cyclist", "pedestrian")
+KINDS: tuple[str, ...] = PARTICIPANT_KINDS
 SLOTS: dict[str, int] = {
     "vehicle": N_VEHICLES_OBSERVED, "cyclist": N_CYCLISTS_OBSERVED, "pedestrian": N_PEDESTRIANS_OBSERVED,
 }

@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from crossroads.constants import PERCEPTION_NOISE
+from crossroads.constants import PARTICIPANT_KINDS, PERCEPTION_NOISE
 from crossroads.geometry import FloatArray
 
-KINDS: tuple[str, ...] = ("vehicle", "cyclist", "pedestrian")
+KINDS: tuple[str, ...] = PARTICIPANT_KINDS
 FIELDS: tuple[str, ...] = ("p_x", "p_y", "v", "phi", "L", "W")
 MIN_SIZE_M = 0.1  # [m] (choice) smallest noisy length / width
 
@@ -24,8 +24,13 @@ _STD = np.array([[PERCEPTION_NOISE[k][f][1] for f in FIELDS] for k in KINDS])  #
 
 
 def kind_indices(kinds: ArrayLike) -> np.ndarray:
-    """Index into :data:`KINDS` of every kind; ``ValueError`` on an unknown one."""
+    """Index into :data:`KINDS` of every kind (names, or already codes); ``ValueError`` on an
+    unknown one."""
     kinds = np.asarray(kinds)
+    if kinds.dtype.kind in "iu":  # already codes (the snapshot's kind_code)
+        if ((kinds < 0) | (kinds >= len(KINDS))).any():
+            raise ValueError(f"participant kind codes must be in 0..{len(KINDS) - 1}")
+        return kinds.astype(np.int64)
     idx = np.full(kinds.shape, -1, dtype=np.int64)
     for i, kind in enumerate(KINDS):
         idx[kinds == kind] = i

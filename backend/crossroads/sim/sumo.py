@@ -40,11 +40,12 @@ import libsumo
 import numpy as np
 from numpy.typing import NDArray
 
-from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, SIM_STEP_S
+from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, PARTICIPANT_KINDS, SIM_STEP_S
 from crossroads.geometry import heading_to_sumo_angle
 
 Kind = Literal["vehicle", "cyclist", "pedestrian"]
-KINDS: tuple[Kind, ...] = ("vehicle", "cyclist", "pedestrian")
+KINDS: tuple[Kind, ...] = PARTICIPANT_KINDS
+KIND_CODE: dict[str, int] = {kind: code for code, kind in enumerate(KINDS)}
 
 EGO_TYPE_ID = "ego"
 
@@ -141,6 +142,7 @@ class Snapshot:
     time_s: float
     ids: NDArray[np.str_]
     kind: NDArray[np.str_]
+    kind_code: NDArray[np.int8]  # index into KINDS (cheaper to compare than the strings)
     x: NDArray[np.float64]
     y: NDArray[np.float64]
     heading: NDArray[np.float64]
@@ -403,6 +405,7 @@ class SumoSession:
             time_s=self.time_s,
             ids=np.array([pid for pid, _ in kept_pairs], dtype=np.str_),
             kind=np.array([st.kind for st in kept_statics], dtype="<U10"),
+            kind_code=np.array([KIND_CODE[st.kind] for st in kept_statics], dtype=np.int8),
             x=(pos[:, 0] - half * np.cos(heading))[keep],
             y=(pos[:, 1] - half * np.sin(heading))[keep],
             heading=heading[keep],

@@ -38,7 +38,7 @@ from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import overlapping, rectangle_corners
 from crossroads.sim.other import route_curvature
 from crossroads.sim.signals import Light, apply_start, live_light, read_program
-from crossroads.sim.sumo import Snapshot, SumoSession
+from crossroads.sim.sumo import KIND_CODE, Snapshot, SumoSession
 from crossroads.sim.traffic import write_routes
 
 EGO_ID = "ego"
@@ -256,7 +256,7 @@ class World:
             ahead, lateral = dx * c + dy * s, -dx * s + dy * c
             # a front vehicle drives the ego's way: oncoming traffic waiting to turn is no queue
             same_way = np.cos(snap.heading - self.ego[4]) > math.cos(FRONT_HEADING_TOLERANCE_RAD)
-            front = (snap.kind != "pedestrian") & (ahead > 0) & (ahead < FRONT_LOOKAHEAD_M) & (
+            front = (snap.kind_code != KIND_CODE["pedestrian"]) & (ahead > 0) & (ahead < FRONT_LOOKAHEAD_M) & (
                 np.abs(lateral) < FRONT_CORRIDOR_HALF_WIDTH_M) & same_way
             if front.any():
                 row = np.flatnonzero(front)[np.argmin(ahead[front])]
@@ -275,7 +275,8 @@ class World:
         truth = np.column_stack([snap.x[rows], snap.y[rows], snap.speed[rows], snap.heading[rows],
                                  snap.length[rows], snap.width[rows]])
         kinds = snap.kind[rows]
-        observed = add_noise(truth, kinds, self._noise_rng) if self.config.perception_noise else truth
+        observed = (add_noise(truth, snap.kind_code[rows], self._noise_rng)
+                    if self.config.perception_noise else truth)
         return Perceived(rows, kinds, observed)
 
     def _observe(self, snap: Snapshot) -> Observation:
