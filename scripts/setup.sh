@@ -16,6 +16,7 @@ log() { printf '\033[1m[setup]\033[0m %s\n' "$*"; }
 apt_packages=()
 if [ "$want_test_tools" = 1 ]; then
   command -v docker-compose >/dev/null 2>&1 || apt_packages+=(docker-compose)
+  [ -x /usr/bin/chromium ] || apt_packages+=(chromium)  # the end-to-end tests (Playwright)
 fi
 if [ ${#apt_packages[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ]; then
@@ -41,6 +42,26 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$lock_hash" ]; then
   .venv/bin/python -m pip install -q --disable-pip-version-check -r requirements.lock
   .venv/bin/python -m pip install -q --disable-pip-version-check --no-deps -e backend
   echo "$lock_hash" > "$stamp"
+fi
+
+PLAYWRIGHT_VERSION=1.65.2  # drives the Debian chromium in tests/e2e (no `playwright install`)
+if [ "$want_test_tools" = 1 ] && ! .venv/bin/python -c "import playwright.sync_api" 2>/dev/null; then
+  log "installing playwright $PLAYWRIGHT_VERSION (end-to-end tests)"
+  .venv/bin/python -m pip install -q --disable-pip-version-check "playwright==$PLAYWRIGHT_VERSION"
+fi
+
+# --- The studio page (frontend/ -> frontend/dist, served at /) ----------------------------------
+if command -v npm >/dev/null 2>&1; then
+  front_stamp=frontend/node_modules/.crossroads-build.sha256
+  front_hash=$(cd frontend && find package.json package-lock.json index.html vite.config.js src -type f \
+                 -print0 | sort -z | xargs -0 sha256sum | sha256sum | cut -d' ' -f1)
+  if [ ! -f frontend/dist/index.html ] || [ ! -f "$front_stamp" ] || [ "$(cat "$front_stamp")" != "$front_hash" ]; then
+    log "building the studio page (npm ci && npm run build)"
+    (cd frontend && npm ci --no-audit --no-fund --loglevel=error && npm run build --silent)
+    echo "$front_hash" > "$front_stamp"
+  fi
+else
+  log "npm not found: the studio page is not built (the API still runs; install Node.js 20+)"
 fi
 
 # --- Services for the tests -------------------------------------------------------------------
