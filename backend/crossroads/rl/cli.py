@@ -125,3 +125,18 @@ def plot_command(
     typer.echo(str(plot_runs(list(run_dirs), output)))
 
 
+@app.command("export")
+def export_command(
+    run: Annotated[Path, typer.Argument(metavar="RUN_DIR|CHECKPOINT", help="a training run or checkpoint")],
+    out: Annotated[Path, typer.Option("-o", "--out", metavar="MODEL.pt", help="e.g. models/apg.pt")],
+) -> None:
+    """Ship a run's networks as MODEL.pt with its model card (MODEL.card.json)."""
+    from crossroads.rl.export import export_model
+
+    try:
+        model, card = export_model(run, out)
+    except (FileNotFoundError, ValueError) as exc:
+        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
+        raise typer.Exit(code=2) from None
+    typer.echo(f"model: {model} ({model.stat().st_size / 1e6:.1f} MB)\ncard: {card}")
+

@@ -1,0 +1,78 @@
+"""A trained run as a shippable model: the networks alone (``models/apg.pt``) and its model card.
+
+The model file keeps the checkpoint format (so :func:`crossroads.rl.checkpoint.load_networks`
+and ``--policy models/apg.pt`` read it) but only the networks and the config: no optimisers, no
+replay buffer, so it is a few MB instead of the tens of MB of a training checkpoint. The card
+(``models/apg.card.json``) says how the model was made: config, iterations, wall time, hardware,
+the last logged losses and TAR.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import platform
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from crossroads.rl.checkpoint import FORMAT, load_checkpoint
+
+NETWORK_KEYS = ("policy", "value", "adversary")
+
+
+def _metrics(run_dir: Path) -> list[dict[str, str]]:
+    path = run_dir / "metrics.csv"
+    if not path.is_file():
+        return []
+    with path.open(newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def model_card(run_dir: Path, checkpoint: dict[str, Any], source: Path) -> dict[str, Any]:
+    """What a user should know about a model: how it was trained and how far it got."""
+    rows = _metrics(run_dir)
+    last = rows[-1] if rows else {}
+    config = json.loads(checkpoint["config"]) if isinstance(checkpoint["config"], str) else checkpoint["config"]
+    wall_s = sum(float(r.get("time/elapsed_s") or 0.0) for r in rows)
+    return {
+        "algo": config.get("algo"),
+        "iterations_done": int(checkpoint["iteration"]),
+        "iterations_planned": config.get("iterations"),
+        "wall_time_s": round(wall_s, 1),
+        "hardware": {
+            "machine": platform.machine(),
+            "cpus": os.cpu_count(),
+            "python": platform.python_version(),
+            "torch": torch.__version__,
+            "device": config.get("device", "cpu"),
+        },
+        "final": {key: float(value) for key, value in last.items()
+                  if value not in ("", None) and key != "iteration"},
+        "log_rows": len(rows),
+        "source_checkpoint": str(source),
+        "config": config,
+    }
+
+
+def export_model(run: Path, out: Path) -> tuple[Path, Path]:
+    """Write ``out`` (networks + config) and ``out`` with ``.card.json`` from a run or checkpoint."""
+    run = Path(run)
+    checkpoint = load_checkpoint(run)
+    run_dir = run if run.is_dir() else run.parent.parent
+    learner = checkpoint["learner"]
+    model = {
+        "format": FORMAT,
+        "iteration": checkpoint["iteration"],
+        "config": checkpoint["config"],
+        "learner": {k: learner[k] for k in NETWORK_KEYS if learner.get(k) is not None},
+    }
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_suffix(".tmp")
+    torch.save(model, tmp)
+    tmp.replace(out)
+    card_path = out.with_suffix(".card.json")
+    card_path.write_text(json.dumps(model_card(run_dir, checkpoint, run), indent=2) + "\n")
+    return out, card_path

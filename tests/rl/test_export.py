@@ -1,0 +1,40 @@
+"""Shipping a trained run: a small model file that drives like its checkpoint, and its card."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import torch
+from typer.testing import CliRunner
+
+from crossroads.evaluation.policies import load_controller
+from crossroads.rl.checkpoint import find_checkpoint, load_networks
+from crossroads.rl.cli import app
+from crossroads.rl.train import train
+
+from rl.rl_support import make_batch
+from rl.test_train import tiny
+
+
+def test_export_keeps_the_networks_and_writes_a_card(tmp_path: Path, path_set, model) -> None:
+    run = train(tiny(tmp_path, iterations=3, run_name="apg"))
+    out = tmp_path / "models" / "apg.pt"
+    result = CliRunner().invoke(app, ["export", str(run), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+
+    shipped, config = load_networks(out)
+    trained, _ = load_networks(run)
+    states = model.initial_states(make_batch(path_set, 6, seed=2))
+    assert torch.equal(shipped.policy.mean_action(states), trained.policy.mean_action(states))
+    assert torch.equal(shipped.value(states), trained.value(states))
+    assert out.stat().st_size < find_checkpoint(run).stat().st_size  # no optimisers, no buffer
+
+    card = json.loads(out.with_suffix(".card.json").read_text())
+    assert card["algo"] == "apg" and card["iterations_done"] == 3
+    assert {"losses/J_pi", "charts/TAR"} <= set(card["final"])
+    assert card["hardware"]["torch"] == torch.__version__ and card["wall_time_s"] > 0
+    assert load_controller(str(out)).name == "apg"  # drives as --policy models/apg.pt
+
+    missing = CliRunner().invoke(app, ["export", str(tmp_path / "nowhere"), "-o", str(out)])
+    assert missing.exit_code == 2 and "no checkpoint" in missing.output
