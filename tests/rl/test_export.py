@@ -38,3 +38,20 @@ def test_export_keeps_the_networks_and_writes_a_card(tmp_path: Path, path_set, m
 
     missing = CliRunner().invoke(app, ["export", str(tmp_path / "nowhere"), "-o", str(out)])
     assert missing.exit_code == 2 and "no checkpoint" in missing.output
+
+
+def test_warm_start_from_an_exported_model(tmp_path: Path, path_set, model) -> None:
+    from crossroads.rl.learner import Learner
+    from crossroads.rl.train import warm_start
+
+    run = train(tiny(tmp_path, iterations=3, run_name="first"))
+    out = tmp_path / "apg.pt"
+    CliRunner().invoke(app, ["export", str(run), "-o", str(out)])
+    learner = Learner(tiny(tmp_path, init_from=out), model, torch.device("cpu"))
+    warm_start(learner, out)
+    shipped, _ = load_networks(out)
+    for mine, theirs in zip(learner.nets, shipped, strict=True):
+        assert all(torch.equal(a, b) for a, b in zip(mine.state_dict().values(),
+                                                      theirs.state_dict().values(), strict=True))
+    second = train(tiny(tmp_path, iterations=3, run_name="second", init_from=out))
+    assert (second / "metrics.csv").is_file()

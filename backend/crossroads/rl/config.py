@@ -137,6 +137,9 @@ class TrainConfig:
     """Directory under which the run directory `<algo>-seed<seed>` is created."""
     run_name: str | None = None
     """Name of the run directory; None: `<algo>-seed<seed>`."""
+    init_from: Path | None = None
+    """Warm start: the networks of a model file or checkpoint (`crossroads train export`) replace the
+    fresh ones; optimisers, schedules and the iteration count start anew (unlike --resume)."""
     progress: bool = True
     """Show a progress bar with ETA on stderr."""
     tensorboard: bool = True
@@ -169,6 +172,7 @@ class TrainConfig:
     def to_json(self) -> dict[str, Any]:
         out = dataclasses.asdict(self)
         out["out"] = str(self.out)
+        out["init_from"] = None if self.init_from is None else str(self.init_from)
         return out
 
     @classmethod

@@ -87,6 +87,9 @@ def train(config: TrainConfig, *, resume: bool = False) -> Path:
         pending = checkpoint["sampler"]["pending"]
         window = _Window(**checkpoint["window"])
 
+    elif config.init_from is not None:
+        warm_start(learner, config.init_from)
+
     logger = MetricsLogger(run_dir, resume_iteration=start if checkpoint else None,
                            tensorboard=config.tensorboard)
     sampler = make_sampler(config, paths.keys)
@@ -172,3 +175,12 @@ class _Window:
     def state(self) -> dict[str, float]:
         return {"n": self.n, "j_v": self.j_v, "j_track": self.j_track, "j_safe": self.j_safe,
                 "j_pi": self.j_pi, "elapsed": self.elapsed + time.monotonic() - self.started}
+
+
+def warm_start(learner: Learner, source: Path) -> None:
+    """Load the networks of ``source`` (model file or checkpoint) into a fresh learner."""
+    networks = load_checkpoint(source)["learner"]
+    for name, net in zip(("policy", "value", "adversary"), learner.nets, strict=True):
+        if net is not None and networks.get(name) is not None:
+            net.load_state_dict(networks[name])
+
