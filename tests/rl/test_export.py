@@ -55,3 +55,16 @@ def test_warm_start_from_an_exported_model(tmp_path: Path, path_set, model) -> N
                                                       theirs.state_dict().values(), strict=True))
     second = train(tiny(tmp_path, iterations=3, run_name="second", init_from=out))
     assert (second / "metrics.csv").is_file()
+
+
+def test_onnx_export_equals_torch(tmp_path: Path, path_set, model) -> None:
+    from crossroads.rl.onnx_export import check_onnx, export_onnx
+
+    run = train(tiny(tmp_path, iterations=3, run_name="onnx"))
+    policy_path, value_path = export_onnx(run, tmp_path / "onnx")
+    states = model.initial_states(make_batch(path_set, 64, seed=3)).numpy()
+    action_err, value_err = check_onnx(run, policy_path, value_path, states)
+    assert action_err <= 1e-5 and value_err <= 1e-5
+    result = CliRunner().invoke(app, ["onnx", str(run), "-o", str(tmp_path / "cli")])
+    assert result.exit_code == 0, result.output
+    assert "max |onnx - torch| / max(1, |torch|)" in result.output

@@ -140,3 +140,28 @@ def export_command(
         raise typer.Exit(code=2) from None
     typer.echo(f"model: {model} ({model.stat().st_size / 1e6:.1f} MB)\ncard: {card}")
 
+
+@app.command("onnx")
+def onnx_command(
+    model: Annotated[Path, typer.Argument(metavar="MODEL.pt", help="a model file or checkpoint")],
+    out: Annotated[Path, typer.Option("-o", "--out", metavar="DIR", help="where policy.onnx and value.onnx go")],
+    samples: Annotated[int, typer.Option(help="random states the export is checked on")] = 512,
+) -> None:
+    """Export the policy and value networks to ONNX and check them against torch (within 1e-5)."""
+    import numpy as np
+
+    from crossroads.rl.onnx_export import TOLERANCE, check_onnx, export_onnx
+
+    try:
+        policy_path, value_path = export_onnx(model, out)
+    except (FileNotFoundError, ValueError) as exc:
+        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
+        raise typer.Exit(code=2) from None
+    states = np.random.default_rng(0).normal(size=(samples, 108))
+    action_err, value_err = check_onnx(model, policy_path, value_path, states)
+    typer.echo(f"{policy_path}\n{value_path}\nmax |onnx - torch| / max(1, |torch|) on {samples} states: "
+               f"action {action_err:.2e}, value {value_err:.2e}")
+    if max(action_err, value_err) > TOLERANCE:
+        typer.secho(f"error: ONNX differs from torch by more than {TOLERANCE:g}", err=True, fg=typer.colors.RED)
+        raise typer.Exit(code=1)
+
