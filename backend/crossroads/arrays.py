@@ -218,6 +218,23 @@ class TorchOps:
         return torch.remainder(angle_rad + math.pi, 2.0 * math.pi) - math.pi
 
 
+class ScalarOps:
+    """Plain Python floats: the same formulas for one state, without numpy's per-call overhead
+    (the online loop steps one ego every 0.1 s; tiny arrays cost more than the arithmetic)."""
+
+    name = "scalar"
+    sin = staticmethod(math.sin)
+    cos = staticmethod(math.cos)
+
+    @staticmethod
+    def clip(x: float, lo: float | None = None, hi: float | None = None) -> float:
+        if lo is not None and x < lo:
+            return lo
+        if hi is not None and x > hi:
+            return hi
+        return x
+
+
 Ops = type[NumpyOps] | type[TorchOps]
 
 

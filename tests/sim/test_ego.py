@@ -120,3 +120,20 @@ def test_gradients_flow() -> None:
     z = torch.zeros(8, dtype=torch.float64, requires_grad=True)
     ego_step(z, torch.tensor([0.1, 1.0], dtype=torch.float64)).sum().backward()
     assert torch.isfinite(z.grad).all()
+
+
+def test_single_state_fast_path_equals_the_batched_and_torch_paths() -> None:
+    """One (8,) state is stepped on Python floats: the same numbers as numpy batches and torch."""
+    import torch
+
+    from crossroads.sim.ego import ego_step
+
+    rng = np.random.default_rng(11)
+    for _ in range(300):
+        state = rng.uniform([-50, -50, 0, -1, -3, -1, -0.5, -3.5], [50, 50, 12, 1, 3, 1, 0.5, 2.0])
+        action = rng.uniform(-6.0, 6.0, 2)  # beyond the limits too: clipping must agree
+        single = ego_step(state, action)
+        assert single.shape == (8,) and single.dtype == np.float64
+        np.testing.assert_allclose(single, ego_step(state[None], action[None])[0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(single, ego_step(torch.tensor(state), torch.tensor(action)).numpy(),
+                                   rtol=0, atol=1e-12)

@@ -31,7 +31,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from crossroads.arrays import ops
+import numpy as np
+
+from crossroads.arrays import ScalarOps, is_torch, ops
 from crossroads.constants import (
     ACCEL_MAX,
     ACCEL_MIN,
@@ -61,13 +63,25 @@ def ego_step(state: Any, action: Any, dt: float = DT_S) -> Any:
 
     The action is clipped first (see :func:`clip_action`); δ and a of the next state are clipped to
     their ranges and v_x is kept ≥ 0 (module docstring). Numpy in, numpy out; tensor in, tensor out.
+    A single numpy state (shape (8,)) is stepped on Python floats (same formulas, :func:`_f_ego`).
     """
+    if isinstance(state, np.ndarray) and state.shape == (8,) and not is_torch(action):
+        u = np.asarray(action, dtype=np.float64)
+        d_delta = ScalarOps.clip(float(u[0]), -STEER_RATE_MAX, STEER_RATE_MAX)
+        d_acc = ScalarOps.clip(float(u[1]), -JERK_MAX, JERK_MAX)
+        return np.array(_f_ego(ScalarOps, *state.tolist(), d_delta, d_acc, dt), dtype=state.dtype
+                        if state.dtype.kind == "f" else np.float64)
     xp = ops(state, action)
     state = xp.asarray(state, like=state)
     action = xp.asarray(action, like=state)
     u = clip_action(action)
-    px, py, vx, vy, phi, omega, delta, acc = (state[..., i] for i in range(8))
-    d_delta, d_acc = u[..., 0], u[..., 1]
+    parts = _f_ego(xp, *(state[..., i] for i in range(8)), u[..., 0], u[..., 1], dt)
+    return xp.stack(list(parts), axis=-1)
+
+
+def _f_ego(xp: Any, px: Any, py: Any, vx: Any, vy: Any, phi: Any, omega: Any, delta: Any, acc: Any,
+           d_delta: Any, d_acc: Any, dt: float) -> tuple[Any, ...]:
+    """The paper's f_ego, term by term, on any namespace (numpy, torch or Python floats)."""
     cos_phi, sin_phi = xp.cos(phi), xp.sin(phi)
     lk = L_F * K_F - L_R * K_R
 
@@ -84,4 +98,4 @@ def ego_step(state: Any, action: Any, dt: float = DT_S) -> Any:
     delta_next = xp.clip(delta + dt * d_delta, -STEER_MAX, STEER_MAX)
     acc_next = xp.clip(acc + dt * d_acc, ACCEL_MIN, ACCEL_MAX)
     vx_next = xp.clip(vx_next, 0.0, None)
-    return xp.stack([px_next, py_next, vx_next, vy_next, phi_next, omega_next, delta_next, acc_next], axis=-1)
+    return px_next, py_next, vx_next, vy_next, phi_next, omega_next, delta_next, acc_next
