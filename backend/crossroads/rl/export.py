@@ -33,7 +33,8 @@ def _metrics(run_dir: Path) -> list[dict[str, str]]:
 
 def model_card(run_dir: Path, checkpoint: dict[str, Any], source: Path) -> dict[str, Any]:
     """What a user should know about a model: how it was trained and how far it got."""
-    rows = _metrics(run_dir)
+    # the log rows up to the checkpoint's iteration: later rows describe weights not in the file
+    rows = [r for r in _metrics(run_dir) if int(r["iteration"]) <= int(checkpoint["iteration"])]
     last = rows[-1] if rows else {}
     config = json.loads(checkpoint["config"]) if isinstance(checkpoint["config"], str) else checkpoint["config"]
     wall_s = sum(float(r.get("time/elapsed_s") or 0.0) for r in rows)
