@@ -6,12 +6,15 @@ checkpoint (``models/apg.pt``) is the IDC decision module driven by its networks
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
+from typing import Any
 
 from crossroads.idc.controller import Controller
 from crossroads.idc.rule_based import RuleBasedController
 
 BUILTIN_POLICIES = ("rule",)
+CARD_SUFFIXES = (".card.json", ".json")  # a checkpoint's model card: models/apg.pt → apg.card.json
 
 
 class PolicyError(ValueError):
@@ -34,3 +37,17 @@ def load_controller(ref: str) -> Controller:
         return IdcController.from_checkpoint(path)
     raise PolicyError(f"unknown policy {ref!r}: use one of {', '.join(BUILTIN_POLICIES)} "
                       "or the path of a trained checkpoint (.pt)")
+
+
+def read_model_card(checkpoint: Path) -> dict[str, Any] | None:
+    """The model card beside a checkpoint (``<stem>.card.json`` or ``<stem>.json``), if readable."""
+    for suffix in CARD_SUFFIXES:
+        candidate = checkpoint.with_name(checkpoint.stem + suffix)
+        if candidate.is_file():
+            try:
+                card = json.loads(candidate.read_text(encoding="utf-8"))
+            except (OSError, ValueError):
+                return None
+            return card if isinstance(card, dict) else None
+    return None
+

@@ -31,7 +31,6 @@ from crossroads.store.tables import (
 )
 
 FINISHED_STATUSES = ("done", "cancelled", "failed")
-CARD_SUFFIXES = (".card.json", ".json")  # a checkpoint's model card: models/apg.pt → apg.card.json
 HASH_CHUNK = 1 << 20
 
 
@@ -57,22 +56,14 @@ class PolicyIdentity:
 def policy_identity(ref: str) -> PolicyIdentity:
     """The identity of ``ref`` (a built-in name or a checkpoint path; its card is read from a
     ``<stem>.card.json`` or ``<stem>.json`` next to it when there is one)."""
-    from crossroads.evaluation.policies import BUILTIN_POLICIES, PolicyError
+    from crossroads.evaluation.policies import BUILTIN_POLICIES, PolicyError, read_model_card
 
     if ref in BUILTIN_POLICIES:
         return PolicyIdentity(ref, ref, "builtin", f"builtin:{ref}", None)
     path = Path(ref)
     if not path.is_file():
         raise PolicyError(f"policy checkpoint {ref!r} does not exist")
-    card = None
-    for suffix in CARD_SUFFIXES:
-        candidate = path.with_name(path.stem + suffix)
-        if candidate.is_file():
-            try:
-                card = json.loads(candidate.read_text(encoding="utf-8"))
-            except (OSError, ValueError):
-                card = None
-            break
+    card = read_model_card(path)
     return PolicyIdentity(path.stem, ref, "checkpoint", f"sha256:{file_sha256(path)}", card)
 
 

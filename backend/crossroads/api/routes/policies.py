@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
-from typing import Any
 
 from fastapi import APIRouter
 
 from crossroads.api.deps import OptionsDep, unprocessable
 from crossroads.api.schemas import PolicyPublic
 from crossroads.evaluation.policies import BUILTIN_POLICIES
-from crossroads.store.crud import CARD_SUFFIXES
+from crossroads.evaluation.policies import read_model_card
 
 router = APIRouter(prefix="/policies", tags=["policies"])
 
@@ -22,18 +20,6 @@ def models_dir(configured: Path | None) -> Path:
     return configured if configured is not None else REPO_MODELS_DIR
 
 
-def _card(checkpoint: Path) -> dict[str, Any] | None:
-    """The model card beside a checkpoint (``<stem>.card.json`` or ``<stem>.json``), if readable."""
-    for suffix in CARD_SUFFIXES:
-        candidate = checkpoint.with_name(checkpoint.stem + suffix)
-        if candidate.is_file():
-            try:
-                card = json.loads(candidate.read_text(encoding="utf-8"))
-            except (OSError, ValueError):
-                return None
-            return card if isinstance(card, dict) else None
-    return None
-
 
 def available_policies(directory: Path) -> list[PolicyPublic]:
     """``rule`` first, then every ``<name>.pt`` of ``directory`` (sorted) with its card."""
@@ -42,7 +28,7 @@ def available_policies(directory: Path) -> list[PolicyPublic]:
         for path in sorted(directory.glob("*.pt")):
             if not path.is_file() or path.stem in BUILTIN_POLICIES:
                 continue
-            card = _card(path)
+            card = read_model_card(path)
             found.append(PolicyPublic(name=path.stem, kind="checkpoint", file=path.name,
                                       size_bytes=path.stat().st_size, card=card))
     return found
