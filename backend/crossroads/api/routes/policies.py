@@ -20,7 +20,6 @@ def models_dir(configured: Path | None) -> Path:
     return configured if configured is not None else REPO_MODELS_DIR
 
 
-
 def available_policies(directory: Path) -> list[PolicyPublic]:
     """``rule`` first, then every ``<name>.pt`` of ``directory`` (sorted) with its card."""
     found = [PolicyPublic(name=name, kind="builtin") for name in BUILTIN_POLICIES]
