@@ -90,11 +90,14 @@ def covered(
     xs = np.asarray(xs, dtype=np.float64)
     ys = np.asarray(ys, dtype=np.float64)
     mask = np.zeros(xs.shape, dtype=bool)
+    distance = np.hypot(xs - ego_x, ys - ego_y)  # [m] from the ego's centre
     for sensor in sensors:
-        # only the points no earlier sensor covers (the lidar alone covers most of them)
-        rest = np.flatnonzero(~mask)
+        # only the points no earlier sensor covers (the lidar alone covers most of them) and that
+        # this sensor can reach at all from its mount (the radars add nothing beyond the lidar)
+        reach = sensor.range_m + math.hypot(sensor.mount_x_m, sensor.mount_y_m)
+        rest = np.flatnonzero(~mask & (distance <= reach))
         if len(rest) == 0:
-            break
+            continue
         mask[rest] = sensor.covers(float(ego_x), float(ego_y), float(ego_heading), xs[rest], ys[rest])
     return mask
 

@@ -129,12 +129,12 @@ class CandidatePath:
         w = 0.0 if seg <= 0.0 else (s_m - self.s[i]) / seg
         x, y = self.points[i] + w * (self.points[i + 1] - self.points[i])
         h = float(wrap_angle(self.heading[i] + w * wrap_angle(self.heading[i + 1] - self.heading[i])))
-        if mode == "pass":
-            v = pass_speed(s_m, self.s_stop_line, self.s_exit)
-        elif mode == "stop":
-            v = stop_speed(s_m, self.s_stop_line, self.s_exit)
-        else:
+        if mode not in ("pass", "stop"):
             raise ValueError(f"unknown speed mode {mode!r}; expected 'pass' or 'stop'")
+        # the profile as sampled, interpolated like the position (a step of the pass profile
+        # becomes a ramp over one 0.5 m sample, which no controller notices)
+        profile = self.v_pass if mode == "pass" else self.v_stop
+        v = profile[i] + w * (profile[i + 1] - profile[i])
         return float(x), float(y), h, float(v)
 
     def to_json(self) -> dict[str, Any]:
