@@ -27,6 +27,7 @@ Known libsumo behaviours this module works around (SUMO 1.28):
 from __future__ import annotations
 
 import functools
+from itertools import chain
 import math
 import os
 import tempfile
@@ -183,6 +184,19 @@ class _Static:
     route: tuple[str, ...]
 
 
+@dataclass(frozen=True)
+class _StaticColumns:
+    """Per-participant columns of a snapshot that only change when participants come or go."""
+
+    key: tuple[str, ...]
+    ids: NDArray[np.str_]
+    kind: NDArray[np.str_]
+    kind_code: NDArray[np.int8]
+    length: NDArray[np.float64]
+    width: NDArray[np.float64]
+    route: tuple[tuple[str, ...], ...]
+
+
 _ACTIVE: SumoSession | None = None  # libsumo: one simulation per process
 
 
@@ -210,6 +224,7 @@ class SumoSession:
         self._egos: dict[str, float] = {}  # ego id -> length [m]
         self._departed: tuple[str, ...] = ()
         self._snapshot: Snapshot | None = None
+        self._columns: _StaticColumns | None = None  # reused while the participants stay the same
         self._args: list[str] = []
 
     # --- life cycle ------------------------------------------------------------------------
@@ -277,6 +292,7 @@ class SumoSession:
         self._egos.clear()
         self._departed = ()
         self._snapshot = None
+        self._columns = None  # ids repeat across runs ("veh0"): never reuse another run's columns
         self._args = args
         return self
 
@@ -368,6 +384,25 @@ class SumoSession:
             self._static[pid] = st
         return st
 
+    def _static_columns(self, ids: tuple[str, ...], n_vehicles: int) -> _StaticColumns:
+        """The snapshot's columns that never change for a participant, rebuilt only when the set
+        of participants changed since the last step (most steps it has not)."""
+        cached = self._columns
+        if cached is not None and cached.key == ids:
+            return cached
+        statics = [self._static.get(pid) or self._static_of(pid, k >= n_vehicles)
+                   for k, pid in enumerate(ids)]
+        self._columns = _StaticColumns(
+            key=ids,
+            ids=np.array(ids, dtype=np.str_),
+            kind=np.array([st.kind for st in statics], dtype="<U10"),
+            kind_code=np.array([KIND_CODE[st.kind] for st in statics], dtype=np.int8),
+            length=np.array([st.length_m for st in statics], dtype=np.float64),
+            width=np.array([st.width_m for st in statics], dtype=np.float64),
+            route=tuple(st.route for st in statics),
+        )
+        return self._columns
+
     @_sumo_errors
     def snapshot(self) -> Snapshot:
         """All participants now (ego excluded), from the step's subscriptions; cached per step.
@@ -383,37 +418,33 @@ class SumoSession:
         vehicles = [(pid, r) for pid in self._vehicles if (r := vres.get(pid)) is not None]
         persons = [(pid, r) for pid in self._persons if (r := pres.get(pid)) is not None]
         pairs = vehicles + persons
-        n_vehicles = len(vehicles)
         n = len(pairs)
-        pos = np.array([r[_POS] for _, r in pairs], dtype=np.float64).reshape(n, 2)
-        angle = np.array([r[_ANG] for _, r in pairs], dtype=np.float64)
-        speed = np.array([r[_SPD] for _, r in pairs], dtype=np.float64)
+        # fromiter over flat values: several times faster than np.array of a list of tuples
+        pos = np.fromiter(chain.from_iterable(r[_POS] for _, r in pairs), np.float64, 2 * n).reshape(n, 2)
+        angle = np.fromiter((r[_ANG] for _, r in pairs), np.float64, n)
+        speed = np.fromiter((r[_SPD] for _, r in pairs), np.float64, n)
         # known but not on the network (e.g. waiting to be inserted): left out
-        on_net = pos[:, 0] != _INVALID
-        cache = self._static
-        statics = [cache.get(pid) or self._static_of(pid, k >= n_vehicles)
-                   for k, (pid, _) in enumerate(pairs)]
-        length = np.array([st.length_m for st in statics], dtype=np.float64)
-        width = np.array([st.width_m for st in statics], dtype=np.float64)
+        keep = np.flatnonzero(pos[:, 0] != _INVALID)
+        if len(keep) < n:
+            pairs = [pairs[k] for k in keep]
+            pos, angle, speed = pos[keep], angle[keep], speed[keep]
+        static = self._static_columns(tuple(pid for pid, _ in pairs), len(vehicles))
         heading = np.radians(90.0 - angle)
         heading = (heading + np.pi) % (2.0 * np.pi) - np.pi
-        half = 0.5 * length
-        keep = np.flatnonzero(on_net) if not on_net.all() else slice(None)
-        kept_pairs = pairs if isinstance(keep, slice) else [pairs[k] for k in keep]
-        kept_statics = statics if isinstance(keep, slice) else [statics[k] for k in keep]
+        half = 0.5 * static.length
         snap = Snapshot(
             time_s=self.time_s,
-            ids=np.array([pid for pid, _ in kept_pairs], dtype=np.str_),
-            kind=np.array([st.kind for st in kept_statics], dtype="<U10"),
-            kind_code=np.array([KIND_CODE[st.kind] for st in kept_statics], dtype=np.int8),
-            x=(pos[:, 0] - half * np.cos(heading))[keep],
-            y=(pos[:, 1] - half * np.sin(heading))[keep],
-            heading=heading[keep],
-            speed=speed[keep],
-            length=length[keep],
-            width=width[keep],
-            lane_id=np.array([r[_LANE] for _, r in kept_pairs], dtype=np.str_),
-            route=tuple(st.route for st in kept_statics),
+            ids=static.ids,
+            kind=static.kind,
+            kind_code=static.kind_code,
+            x=pos[:, 0] - half * np.cos(heading),
+            y=pos[:, 1] - half * np.sin(heading),
+            heading=heading,
+            speed=speed,
+            length=static.length,
+            width=static.width,
+            lane_id=np.array([r[_LANE] for _, r in pairs], dtype=np.str_),
+            route=static.route,
         )
         self._snapshot = snap
         return snap
