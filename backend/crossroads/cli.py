@@ -44,15 +44,19 @@ def _user_errors() -> tuple[type[BaseException], ...]:
     """The error types that mean "the input is wrong", imported lazily to keep --help fast."""
     from pydantic import ValidationError
 
+    from crossroads.evaluation.batch import BatchError
+    from crossroads.evaluation.executors import ExecutorError
+    from crossroads.evaluation.policies import PolicyError
     from crossroads.network.junction import JunctionError
     from crossroads.network.resolve import NetworkNotFoundError
     from crossroads.planning import PlanningError
-    from crossroads.evaluation.policies import PolicyError
     from crossroads.sim.sumo import SumoError
+    from crossroads.store import StoreError
+    from crossroads.store.reporting import UnknownBatchError
     from crossroads.validation import SpecError
 
     return (SpecError, JunctionError, NetworkNotFoundError, PlanningError, ValidationError,
-            PolicyError, SumoError)
+            PolicyError, SumoError, StoreError, UnknownBatchError, BatchError, ExecutorError)
 
 
 def reports_errors(func: F) -> F:
@@ -218,11 +222,10 @@ def evaluate(
     """Run batches (one per scenario x policy) into the results store and print their figures."""
     from tqdm import tqdm
 
-    from crossroads.evaluation.batch import BatchError, BatchRunner, create_batch_for
-    from crossroads.evaluation.executors import ExecutorError
+    from crossroads.evaluation.batch import BatchRunner, create_batch_for
     from crossroads.evaluation.scenario import load_scenarios
     from crossroads.settings import Settings
-    from crossroads.store import StoreError, open_store
+    from crossroads.store import open_store
 
     def fail(message: str) -> typer.Exit:
         typer.secho(f"error: {message}", err=True, fg=typer.colors.RED)
@@ -231,10 +234,7 @@ def evaluate(
     if scenario is None and not resume:
         raise fail("give a SCENARIO.yaml or DIR (or --resume BATCH_ID)")
     settings = Settings(db_url=db, ray_address=ray)
-    try:
-        store = open_store(settings.database_url)
-    except StoreError as exc:
-        raise fail(str(exc)) from None
+    store = open_store(settings.database_url)
     # Every scenario file is validated before anything runs; each batch is created just before
     # it runs, so an interrupted command leaves no queued batches behind, only the one to resume.
     planned: list[Callable[[], int]] = [lambda b=b: b for b in resume or []]
@@ -270,8 +270,6 @@ def evaluate(
             results.append(result)
             if not as_json:
                 typer.echo(_batch_line(result))
-    except (BatchError, ExecutorError, StoreError) as exc:
-        raise fail(str(exc)) from None
     finally:
         store.close()
     if as_json:
@@ -302,18 +300,14 @@ def report(
     """Tables like the paper's (with its numbers beside), plots and failed episodes' traces."""
     from crossroads.evaluation.report import render_html, write_csv
     from crossroads.settings import Settings
-    from crossroads.store import StoreError, open_store
-    from crossroads.store.reporting import UnknownBatchError, report_rows
+    from crossroads.store import open_store
+    from crossroads.store.reporting import report_rows
 
+    store = open_store(Settings(db_url=db).database_url)
     try:
-        store = open_store(Settings(db_url=db).database_url)
-        try:
-            rows = report_rows(store, batch_ids)
-        finally:
-            store.close()
-    except (StoreError, UnknownBatchError) as exc:
-        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
-        raise typer.Exit(code=2) from None
+        rows = report_rows(store, batch_ids)
+    finally:
+        store.close()
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(render_html(rows, title=title), encoding="utf-8")
     typer.echo(f"report: {out}")

@@ -88,13 +88,11 @@ def test_cars_in_neighbouring_lanes_do_not_violate() -> None:
 
 def test_margin_and_threshold() -> None:
     # two identical cars side by side, centres d apart laterally: g = 2r + margin − d
-    other = EGO.copy()
     d = 4.0
     other_xy = EGO[:2] + d * np.array([-math.sin(EGO[4]), math.cos(EGO[4])])
     st = scene(EGO, [[*other_xy, 0.0, EGO[4], EGO_LENGTH_M, EGO_WIDTH_M]], ["vehicle"])
     g = C.safety_constraints(st, safety_margin_m=0.25)
     assert g[0] == pytest.approx(2 * C.EGO_RADIUS_M + 0.25 - d, abs=1e-6)
-    assert other is not None
 
 
 def test_road_constraints() -> None:

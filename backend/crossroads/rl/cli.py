@@ -21,6 +21,12 @@ app = typer.Typer(help="Train the IDC networks by APG (adversarial) or DPG (base
                   invoke_without_command=True, pretty_exceptions_enable=False)
 
 
+def fail(message: str, code: int = 2) -> typer.Exit:
+    """One red line on stderr; raise the returned Exit (status 2: bad input)."""
+    typer.secho(f"error: {message}", err=True, fg=typer.colors.RED)
+    return typer.Exit(code=code)
+
+
 @app.callback()
 def train_command(
     ctx: typer.Context,
@@ -49,8 +55,7 @@ def train_command(
         config = apply_overrides(TrainConfig(), overrides)
         run_dir = train(config, resume=resume)
     except (ValueError, RunExistsError, FileNotFoundError) as exc:
-        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
     typer.echo(str(run_dir))
 
 
@@ -120,8 +125,7 @@ def plot_command(
     """Training curves (J_π, J_v, J_track, J_safe, TAR) of one or more runs."""
     for run in run_dirs:
         if not (Path(run) / "metrics.csv").is_file():
-            typer.secho(f"error: {run} has no metrics.csv", err=True, fg=typer.colors.RED)
-            raise typer.Exit(code=2)
+            raise fail(f"{run} has no metrics.csv")
     typer.echo(str(plot_runs(list(run_dirs), output)))
 
 
@@ -136,8 +140,7 @@ def export_command(
     try:
         model, card = export_model(run, out)
     except (FileNotFoundError, ValueError) as exc:
-        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
     typer.echo(f"model: {model} ({model.stat().st_size / 1e6:.1f} MB)\ncard: {card}")
 
 
@@ -155,13 +158,11 @@ def onnx_command(
     try:
         policy_path, value_path = export_onnx(model, out)
     except (FileNotFoundError, ValueError) as exc:
-        typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
-        raise typer.Exit(code=2) from None
+        raise fail(str(exc)) from None
     states = np.random.default_rng(0).normal(size=(samples, 108))
     action_err, value_err = check_onnx(model, policy_path, value_path, states)
     typer.echo(f"{policy_path}\n{value_path}\nmax |onnx - torch| / max(1, |torch|) on {samples} states: "
                f"action {action_err:.2e}, value {value_err:.2e}")
     if max(action_err, value_err) > TOLERANCE:
-        typer.secho(f"error: ONNX differs from torch by more than {TOLERANCE:g}", err=True, fg=typer.colors.RED)
-        raise typer.Exit(code=1)
+        raise fail(f"ONNX differs from torch by more than {TOLERANCE:g}", code=1)
 

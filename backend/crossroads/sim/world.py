@@ -226,7 +226,7 @@ class World:
         (None while the episode goes on)."""
         if self.outcome is not None:
             raise RuntimeError("the episode has ended; call reset(seed) first")
-        previous_distance = self._distance_to_stop_line(self.ego)
+        previous_distance = self._last_distance_m  # of the observation the action answered
         self.ego = ego_step(self.ego, np.asarray(action, dtype=np.float64))  # clips the action
         x, y, vx, _, heading = self.ego[:5]
         self.session.move_ego(EGO_ID, float(x), float(y), float(heading), float(vx))
@@ -237,6 +237,11 @@ class World:
         obs = self._observe(snap)
         self.outcome = self._judge(snap, obs, previous_distance)
         return obs, self.outcome
+
+    def _track_distance(self) -> float:
+        """The ego's distance to the stop line now, kept for the next step's crossing check."""
+        self._last_distance_m = self._distance_to_stop_line(self.ego)
+        return self._last_distance_m
 
     def _distance_to_stop_line(self, ego: FloatArray) -> float:
         front = ego[:2] + EGO_LENGTH_M / 2.0 * np.array([math.cos(ego[4]), math.sin(ego[4])])
@@ -284,7 +289,7 @@ class World:
             time_s=self.time_s,
             ego=self.ego.copy(),
             light=self._light(),
-            distance_to_stop_line_m=self._distance_to_stop_line(self.ego),
+            distance_to_stop_line_m=self._track_distance(),
             front_vehicle_stopped_s=self._front_vehicle_stopped_s(snap),
             participants=snap,
             abnormal_ids=self._abnormal_ids,
