@@ -1,7 +1,8 @@
 # The two commands of the README. Both set up what they need first (scripts/setup.sh).
 #   make serve [ARGS="--port 9000 --db postgresql://..."]   the studio on http://127.0.0.1:8000
 #   make test  [PYTEST_ARGS="-k junction"]                   the whole test suite
-.PHONY: serve test setup bench
+#   make models [ITERATIONS=8000]                            train and export models/apg.pt, models/dpg.pt
+.PHONY: serve test setup bench models
 
 serve:
 	@bash scripts/setup.sh
@@ -14,3 +15,7 @@ test:
 
 setup:
 	@bash scripts/setup.sh --test
+
+models:
+	@bash scripts/setup.sh
+	bash scripts/train_models.sh $(ITERATIONS)

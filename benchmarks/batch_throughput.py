@@ -1,10 +1,10 @@
 """Batch throughput: episodes per minute with 1 and 2 local worker processes and with local Ray.
 
     .venv/bin/python benchmarks/batch_throughput.py [--scenario scenarios/nominal/a_single_lane-left.yaml]
-        [--timeout-s 20] [--episodes 12] [--no-ray]
+        [--timeout-s 20] [--episodes 12] [--no-ray] [--policy rule|MODEL.pt]
 
 Each configuration runs one fresh batch of ``--episodes`` episodes of the scenario (its timeout
-cut to ``--timeout-s``) with the rule controller into a temporary SQLite store, traces off, so the
+cut to ``--timeout-s``) with the rule controller (or ``--policy``) into a temporary SQLite store, traces off, so the
 figure is the whole path a real batch takes: worker start-up, episodes, one committed row each.
 Printed per configuration: the rate over the batch's whole wall time, and the steady rate (from
 the first recorded episode to the last, i.e. without start-up). Then the scaling ratio
@@ -33,11 +33,11 @@ TARGET_MIN = 15.0
 
 
 def measure(store, spec, base_dir: Path, data_dir: Path, *, workers: int,  # type: ignore[no-untyped-def]
-            ray_address: str | None) -> tuple[float, float, int]:
+            ray_address: str | None, policy: str) -> tuple[float, float, int]:
     """(total rate, steady rate) in episodes/min, and the errors of one fresh batch."""
     from crossroads.evaluation.batch import BatchRunner, create_batch_for
 
-    batch_id = create_batch_for(store, spec=spec, policy="rule", traces="none", base_dir=base_dir)
+    batch_id = create_batch_for(store, spec=spec, policy=policy, traces="none", base_dir=base_dir)
     stamps: list[float] = []
     start = time.perf_counter()
     result = BatchRunner(store, batch_id, workers=workers, ray_address=ray_address, data_dir=data_dir,
@@ -54,6 +54,7 @@ def main() -> None:
     parser.add_argument("--timeout-s", type=float, default=20.0)
     parser.add_argument("--episodes", type=int, default=12)
     parser.add_argument("--no-ray", action="store_true", help="skip the local Ray measurement")
+    parser.add_argument("--policy", default="rule", help="'rule' or a model (.pt), e.g. models/apg.pt")
     args = parser.parse_args()
 
     from crossroads.evaluation.scenario import load_scenario
@@ -66,13 +67,13 @@ def main() -> None:
     if not args.no_ray:
         configs.append(("2 workers (local Ray)", 2, "local"))
     print(f"scenario {spec.name}, timeout {spec.timeout_s:g} s, warm-up {spec.warmup_s:g} s, "
-          f"{args.episodes} episodes per configuration, rule controller, {os.cpu_count()} CPUs")
+          f"{args.episodes} episodes per configuration, policy {args.policy}, {os.cpu_count()} CPUs")
     rates: dict[int | str, float] = {}
     with tempfile.TemporaryDirectory(prefix="crossroads-bench-") as tmp:
         store = open_store(f"sqlite:///{tmp}/bench.db")
         for label, workers, ray_address in configs:
             total, steady, errors = measure(store, spec, args.scenario.parent, Path(tmp),
-                                            workers=workers, ray_address=ray_address)
+                                            workers=workers, ray_address=ray_address, policy=args.policy)
             rates[ray_address or workers] = steady
             rates[f"total-{ray_address or workers}"] = total
             print(f"  {label:<24} {total:7.1f} episodes/min overall   {steady:7.1f} episodes/min steady"

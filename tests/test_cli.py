@@ -65,6 +65,8 @@ def test_paths_on_a_real_city_network() -> None:
         (("paths", "no_such_place", "--task", "left"), "no intersection 'no_such_place'"),
         (("paths", "missing.net.xml", "--task", "left"), "does not exist"),
         (("net", "build", "nowhere.yaml", "-o", "/tmp/x"), "nowhere.yaml"),
+        (("serve", "--max-batches", "0"), "max_concurrent_batches: Input should be greater than or equal to 1"),
+        (("serve", "--db", "mysql://x/y"), "is not a database URL Crossroads supports"),
     ],
 )
 def test_bad_input_gets_one_clear_line(args: tuple[str, ...], message: str) -> None:

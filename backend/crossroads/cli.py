@@ -16,6 +16,7 @@ from typing import Annotated, Any, Literal, TypeVar
 
 import typer
 
+from crossroads.cli_errors import describe, fail
 from crossroads.constants import RHO_BEZIER
 
 app = typer.Typer(
@@ -65,8 +66,7 @@ def reports_errors(func: F) -> F:
         try:
             return func(*args, **kwargs)
         except _user_errors() as exc:
-            typer.secho(f"error: {exc}", err=True, fg=typer.colors.RED)
-            raise typer.Exit(code=2) from None
+            raise fail(describe(exc)) from None
 
     return wrapper  # type: ignore[return-value]
 
@@ -77,6 +77,12 @@ def serve(
     host: Annotated[str, typer.Option(help="interface to listen on")] = "127.0.0.1",
     port: Annotated[int, typer.Option(help="TCP port")] = 8000,
     db: Annotated[str | None, typer.Option(help="database URL (default: SQLite in the data dir)")] = None,
+    ray: Annotated[str | None, typer.Option(help="Ray cluster address for batches (default: local workers)")] = None,
+    max_batches: Annotated[int | None, typer.Option(
+        help="batches run at once; more wait in a queue (default 2)")] = None,
+    resume_batches: Annotated[bool | None, typer.Option(
+        "--resume-batches/--no-resume-batches",
+        help="resume batches a previous run of the studio left queued or running (default: yes)")] = None,
 ) -> None:
     """Start the studio: the API (docs at /docs) on HOST:PORT."""
     import uvicorn
@@ -84,7 +90,9 @@ def serve(
     from crossroads.api.main import create_app
     from crossroads.settings import Settings
 
-    settings = Settings(host=host, port=port, db_url=db)
+    # options not given keep the CROSSROADS_* environment or the defaults
+    given = {"ray_address": ray, "max_concurrent_batches": max_batches, "resume_batches": resume_batches}
+    settings = Settings(host=host, port=port, db_url=db, **{k: v for k, v in given.items() if v is not None})
     typer.echo(f"Crossroads studio on http://{host}:{port}/  (API docs: http://{host}:{port}/docs)")
     uvicorn.run(create_app(settings), host=host, port=port, log_level="info")
 
@@ -138,8 +146,7 @@ def paths(
         try:
             chosen = junc.approach(approach)
         except KeyError as exc:
-            typer.secho(f"error: --approach: {exc.args[0]}", err=True, fg=typer.colors.RED)
-            raise typer.Exit(code=2) from None
+            raise fail(f"--approach: {exc.args[0]}") from None
     candidates = plan_candidates(junc, task, approach=chosen, rho=rho)
     if plot is not None:
         from crossroads.viz.figure import save_intersection_figure
@@ -223,13 +230,11 @@ def evaluate(
     from tqdm import tqdm
 
     from crossroads.evaluation.batch import BatchRunner, create_batch_for
+    from crossroads.evaluation.network_checks import network_problems
     from crossroads.evaluation.scenario import load_scenarios
     from crossroads.settings import Settings
     from crossroads.store import open_store
-
-    def fail(message: str) -> typer.Exit:
-        typer.secho(f"error: {message}", err=True, fg=typer.colors.RED)
-        return typer.Exit(code=2)
+    from crossroads.validation import SpecError
 
     if scenario is None and not resume:
         raise fail("give a SCENARIO.yaml or DIR (or --resume BATCH_ID)")
@@ -242,6 +247,9 @@ def evaluate(
         found = load_scenarios(scenario)
         if not found:
             raise fail(f"no scenario files (*.yaml) in {scenario}")
+        for path, spec in found:  # what only the network can tell, before any batch starts
+            if problems := network_problems(spec, path.parent):
+                raise SpecError(str(path), problems)
         for path, spec in found:
             for ref in policy or ["rule"]:
                 planned.append(lambda spec=spec, ref=ref, base=path.parent: create_batch_for(
@@ -294,6 +302,8 @@ def report(
     batch_ids: Annotated[list[int], typer.Argument(metavar="BATCH_ID...", help="stored batches")],
     out: Annotated[Path, typer.Option("-o", "--out", metavar="OUT.html", help="the HTML report")],
     csv: Annotated[Path | None, typer.Option(metavar="OUT.csv", help="also one CSV line per batch")] = None,
+    markdown: Annotated[Path | None, typer.Option(
+        metavar="OUT.md", help="also the main table as Markdown (ours beside the paper's)")] = None,
     db: Annotated[str | None, typer.Option(help="database URL (default: SQLite in the data dir)")] = None,
     title: Annotated[str, typer.Option(help="the report's title")] = "Crossroads evaluation",
 ) -> None:
@@ -314,6 +324,11 @@ def report(
     if csv is not None:
         write_csv(rows, csv)
         typer.echo(f"csv: {csv}")
+    if markdown is not None:
+        from crossroads.evaluation.report_markdown import render_markdown
+
+        markdown.write_text(render_markdown(rows), encoding="utf-8")
+        typer.echo(f"markdown: {markdown}")
 
 
 @app.command()
@@ -333,8 +348,7 @@ def view(
 
     for trace in traces:
         if not trace.is_file():
-            typer.secho(f"error: trace {str(trace)!r} does not exist", err=True, fg=typer.colors.RED)
-            raise typer.Exit(code=2)
+            raise fail(f"trace {str(trace)!r} does not exist")
     app_ = PlaybackServer(traces, host=host, port=port, net=net, autoplay=autoplay)
     typer.echo(f"Crossroads 3D view on {app_.url}  ({len(traces)} episode(s); Ctrl-C to stop)")
     try:

@@ -26,6 +26,15 @@ class Settings(BaseSettings):
         None, description="SQLAlchemy URL of the results store; default: SQLite in data_dir"
     )
     ray_address: str | None = Field(None, description="Ray cluster for batches; default: local workers")
+    max_concurrent_batches: int = Field(
+        2, ge=1, le=64,
+        description="batches the API runs at once; a batch started beyond that waits in a queue",
+    )
+    resume_batches: bool = Field(
+        True,
+        description="at start, resume the batches a previous API process left queued or running "
+        "(turn off when another process, e.g. `crossroads evaluate`, runs batches of the same store)",
+    )
 
     @field_validator("db_url")
     @classmethod

@@ -50,16 +50,21 @@ def client(data_dir: Path, models_dir: Path) -> Iterator[TestClient]:
         yield test_client
 
 
+def wait_for_status(client: TestClient, url: str, statuses: tuple[str, ...], timeout_s: float) -> dict[str, Any]:
+    """Poll GET ``url`` until the body's ``status`` is one of ``statuses``; fail after ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        body = client.get(url).json()
+        if body["status"] in statuses:
+            return body
+        assert time.monotonic() < deadline, f"{url} still {body['status']}"
+        time.sleep(0.1)
+
+
 def _wait_for(client: TestClient, batch_id: int, statuses: tuple[str, ...],
              timeout_s: float = BATCH_TIMEOUT_S) -> dict[str, Any]:
     """Poll GET /batches/{id} until its status is one of ``statuses``."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        body = client.get(f"/api/batches/{batch_id}").json()
-        if body["status"] in statuses:
-            return body
-        assert time.monotonic() < deadline, f"batch {batch_id} still {body['status']}"
-        time.sleep(0.1)
+    return wait_for_status(client, f"/api/batches/{batch_id}", statuses, timeout_s)
 
 
 def _field_named(response: Any, *parts: str | int) -> bool:

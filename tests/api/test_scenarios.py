@@ -149,3 +149,44 @@ def test_policies_lists_rule_and_checkpoints_with_cards(client: TestClient) -> N
     assert policies["rule"]["kind"] == "builtin"
     assert policies["fake"]["kind"] == "checkpoint" and policies["fake"]["file"] == "fake.pt"
     assert policies["fake"]["card"] == {"algorithm": "APG", "iterations": 1}
+
+
+@pytest.mark.parametrize(("change", "loc", "words"), [
+    ({"approach": "nowhere_in"}, ("approach",), "south_in"),          # lists the approaches
+    ({"ego": {"entrance_lane": "south_in_9"}}, ("ego", "entrance_lane"), "south_in_4"),
+    ({"ego": {"entrance_lane": "south_in_2"}}, ("ego", "entrance_lane"), "does not lead left"),
+    ({"ego": {"entrance_lane": "north_in_4"}}, ("ego", "entrance_lane"), "not an entrance lane"),
+    ({"ego": {"start_distance_m": 400.0}}, ("ego", "start_distance_m"), "at most"),
+    ({"ego": {"start_distance_m": 0.0}}, ("ego", "start_distance_m"), "greater than 0"),
+    ({"ego": {"start_speed_mps": -1.0}}, ("ego", "start_speed_mps"), "greater than or equal"),
+    ({"lights": {"phase": 4}}, ("lights", "phase"), "0 to 3"),
+    ({"lights": {"phase": 1, "elapsed_s": 3.0}}, ("lights", "elapsed_s"), "lasts 3 s"),
+    ({"lights": {"phase": 0, "elapsed_s": -1.0}}, ("lights", "elapsed_s"), "greater than or equal"),
+])
+def test_what_the_network_contradicts_names_the_field(
+        client: TestClient, tiny_scenario: dict[str, Any], field_named: Any,
+        change: dict[str, Any], loc: tuple[str, ...], words: str) -> None:
+    data = {**tiny_scenario, "intersection": "c_three_lane", **change}
+    before = _count(client)
+    response = client.post("/api/scenarios", json=data)
+    assert field_named(response, *loc), response.json()
+    assert words in response.json()["detail"][0]["msg"]
+    check = client.post("/api/scenarios/validate", json=data).json()
+    assert check["valid"] is False and [p["field"] for p in check["problems"]] == [".".join(loc)]
+    assert _count(client) == before
+
+
+def test_ego_start_and_lights_that_fit_the_network(client: TestClient, tiny_scenario: dict[str, Any]) -> None:
+    data = {**tiny_scenario, "name": "ego-start", "intersection": "c_three_lane", "approach": "south_in",
+            "ego": {"entrance_lane": "south_in_4", "start_distance_m": 25.0, "start_speed_mps": 5.0},
+            "lights": {"phase": 2, "elapsed_s": 30.0}}
+    created = client.post("/api/scenarios", json=data)
+    assert created.status_code == 201, created.text
+    spec = created.json()["spec"]
+    assert spec["ego"] == {"entrance_lane": "south_in_4", "start_distance_m": 25.0, "start_speed_mps": 5.0}
+    assert spec["lights"] == {"phase": 2, "elapsed_s": 30.0} and spec["approach"] == "south_in"
+    geometry = client.get("/api/intersections/c_three_lane").json()
+    assert [p["duration_s"] for p in geometry["program"]["phases"]] == [60.0, 3.0, 37.0, 3.0]
+    links = [m["link"] for m in geometry["signal_links"]["south_in"] if m["lane"] == "south_in_4" and m["turn"] == "left"]
+    assert links and all(geometry["program"]["phases"][0]["state"][k] in "Gg" for k in links), \
+        "phase 0: the ego's axis green"

@@ -125,3 +125,19 @@ def test_not_multipart_or_no_file_field(client: TestClient, field_named: Any) ->
     response = client.post("/api/intersections/upload", files={"other": ("a.net.xml", b"<net/>")})
     assert field_named(response, "file")
     assert "missing" in response.json()["detail"][0]["msg"]
+
+
+def test_uploads_are_listed_with_their_paths_and_program(client: TestClient, field_named: Any) -> None:
+    data = sumo_example(SUMO_CROSS_NET).read_bytes()
+    digest = _upload(client, data, "cross.net.xml").json()["id"]
+    listed = {u["id"]: u for u in client.get("/api/intersections/uploads").json()}
+    assert listed[digest]["name"] == "cross.net.xml" and listed[digest]["net"] == f"uploads/{digest}.net.xml"
+    geometry = client.get(f"/api/intersections/uploads/{digest}").json()
+    assert geometry["name"] == "cross.net.xml" and geometry["program"]["phases"]
+    paths = client.get(f"/api/intersections/uploads/{digest}/paths", params={"task": "left"})
+    assert paths.status_code == 200 and paths.json() and paths.json()[0]["points"]
+    assert field_named(client.get(f"/api/intersections/uploads/{digest}/paths",
+                                  params={"task": "up"}), "task")
+    bad = client.get(f"/api/intersections/uploads/{digest}/paths", params={"task": "left", "approach": "x"})
+    assert bad.status_code == 422 and bad.json()["detail"].startswith("approach:")
+    assert client.get(f"/api/intersections/uploads/{'0' * 64}/paths", params={"task": "left"}).status_code == 404

@@ -1,5 +1,7 @@
-"""The studio end to end in headless chromium: author a scenario with an over-speed injection in
-the page, save it, run a small batch, see its pass rate, open an episode's 3D playback."""
+"""The studio end to end in headless chromium: author a scenario with an over-speed injection and
+the ego's start in the page, save it, run a small batch, see its pass rate, open an episode's 3D
+playback; cancel a running batch; upload a SUMO network and drive one episode on it live in the
+3D view."""
 
 from __future__ import annotations
 
@@ -10,26 +12,63 @@ from typing import Any
 
 import pytest
 
+from support import SUMO_CROSS_NET, sumo_example
+
 pytestmark = pytest.mark.slow
 
 BATCH_TIMEOUT_MS = 100_000  # two short episodes on a loaded 2-core machine
+START_TIMEOUT_MS = 60_000  # a batch's worker processes or a live run's world starting
+VIEWER_RE = re.compile(r"http://127\.0\.0\.1:\d+/")
+
+
+def _open(browser: Any, studio_url: str) -> tuple[Any, list[str]]:
+    page = browser.new_page(viewport={"width": 1400, "height": 1100})
+    errors: list[str] = []
+    page.on("pageerror", lambda exc: errors.append(str(exc)))
+    page.goto(studio_url + "/")
+    page.wait_for_selector("#preview polyline.candidate")  # intersections loaded, paths drawn
+    return page, errors
+
+
+def _choose(page: Any, intersection: str, task: str) -> None:
+    page.select_option("select[name=intersection]", intersection)
+    page.select_option("select[name=task]", task)
+    page.wait_for_function(
+        f"document.querySelector('#preview text')?.textContent.includes('{intersection} · {task}')")
+
+
+def _save(page: Any) -> int:
+    page.click("#save")
+    page.wait_for_selector("#saved:has-text('Saved as scenario')")
+    assert page.locator(".field-error").count() == 0
+    return int(re.search(r"#(\d+)", page.inner_text("#saved")).group(1))  # type: ignore[union-attr]
+
+
+def _viewer_shot(viewer: Any, path: Path) -> None:
+    viewer.wait_for_selector("canvas", state="attached", timeout=START_TIMEOUT_MS)
+    viewer.wait_for_timeout(3000)  # let the scene arrive over the websocket before the picture
+    viewer.screenshot(path=str(path))
 
 
 def test_author_run_and_play_back(studio_url: str, browser: Any, artifacts: Path) -> None:
-    page = browser.new_page(viewport={"width": 1400, "height": 1100})
-    console_errors: list[str] = []
-    page.on("pageerror", lambda exc: console_errors.append(str(exc)))
-    page.goto(studio_url + "/")
-    page.wait_for_selector("#preview polyline.candidate")  # intersections loaded, paths drawn
-
-    page.select_option("select[name=intersection]", "a_single_lane")
-    page.select_option("select[name=task]", "left")
-    page.wait_for_function(
-        "document.querySelector('#preview text')?.textContent.includes('a_single_lane · left')")
+    page, console_errors = _open(browser, studio_url)
+    _choose(page, "a_single_lane", "left")
     assert page.locator("#preview polyline.candidate").count() >= 1
     page.screenshot(path=str(artifacts / "01-preview.png"), full_page=True)
 
-    # A bad value first: the 422 is shown next to its field.
+    # The ego's start and the light at entry: choices read from the network.
+    page.select_option("select[name=approach]", "south_in")
+    lanes = page.locator("select[name='ego.entrance_lane'] option").all_inner_texts()
+    assert any("south_in_1" in text and "left" in text for text in lanes), lanes
+    page.select_option("select[name='ego.entrance_lane']", "south_in_1")
+    page.fill("input[name='ego.start_distance_m']", "30")
+    page.fill("input[name='ego.start_speed_mps']", "5")
+    phases = page.locator("select[name='lights.phase'] option").all_inner_texts()
+    assert phases[0] == "0: 60 s · ego green" and len(phases) == 4, phases
+    page.locator("#preview rect.ego-start").wait_for()
+
+    # Bad values first: each 422 is shown next to its field; what contradicts the network is
+    # checked once the rest is valid.
     page.fill("input[name=name]", "e2e-overspeed")
     page.check("input[name='overspeed.on']")
     page.fill("input[name='abnormal.overspeed.share']", "1.5")
@@ -38,23 +77,30 @@ def test_author_run_and_play_back(studio_url: str, browser: Any, artifacts: Path
     error.wait_for()
     assert "1" in error.inner_text()
     page.screenshot(path=str(artifacts / "02-field-error.png"), full_page=True)
-
     page.fill("input[name='abnormal.overspeed.share']", "0.5")
+    page.select_option("select[name='lights.phase']", "1")
+    page.fill("input[name='lights.elapsed_s']", "5")  # phase 1 lasts 3 s
+    page.click("#save")
+    lights = page.locator(".field-error[data-for='lights.elapsed_s']")
+    lights.wait_for()
+    assert "lasts 3 s" in lights.inner_text() and page.locator(".field-error").count() == 1
+    page.screenshot(path=str(artifacts / "02b-phase-error.png"), full_page=True)
+
+    page.select_option("select[name='lights.phase']", "0")
     page.fill("input[name='abnormal.overspeed.excess']", "50")
     page.fill("input[name=runs]", "2")
     page.fill("input[name=seed]", "7")
     page.fill("input[name=warmup_s]", "5")
     page.fill("input[name=timeout_s]", "20")
-    page.click("#save")
-    page.wait_for_selector("#saved:has-text('Saved as scenario')")
-    assert page.locator(".field-error").count() == 0
+    scenario_id = _save(page)
     page.screenshot(path=str(artifacts / "03-saved.png"), full_page=True)
 
-    # The stored scenario carries the injection authored in the page.
-    scenario_id = int(re.search(r"#(\d+)", page.inner_text("#saved")).group(1))  # type: ignore[union-attr]
+    # The stored scenario carries what was authored in the page.
     stored = page.request.get(f"{studio_url}/api/scenarios/{scenario_id}").json()["spec"]
     assert stored["abnormal"]["overspeed"] == {"share": 0.5, "excess": 0.5}
-    assert stored["runs"] == 2
+    assert stored["runs"] == 2 and stored["approach"] == "south_in"
+    assert stored["ego"] == {"entrance_lane": "south_in_1", "start_distance_m": 30.0, "start_speed_mps": 5.0}
+    assert stored["lights"] == {"phase": 0, "elapsed_s": 5.0}
 
     page.select_option("#policy", "rule")
     page.click("#run")
@@ -73,12 +119,80 @@ def test_author_run_and_play_back(studio_url: str, browser: Any, artifacts: Path
     with page.context.expect_page() as opened:
         link.click()
     viewer = opened.value
-    viewer.wait_for_load_state("load", timeout=60_000)
-    assert re.match(r"http://127\.0\.0\.1:\d+/", viewer.url)
+    viewer.wait_for_load_state("load", timeout=START_TIMEOUT_MS)
+    assert VIEWER_RE.match(viewer.url)
     with urllib.request.urlopen(viewer.url, timeout=10) as res:
         assert res.status == 200
-    viewer.wait_for_selector("canvas", state="attached", timeout=60_000)
-    viewer.wait_for_timeout(3000)  # let the scene arrive over the websocket before the picture
-    viewer.screenshot(path=str(artifacts / "06-playback.png"))
+    _viewer_shot(viewer, artifacts / "06-playback.png")
+    viewer.close()
+    assert not console_errors, console_errors
+
+
+def test_cancel_a_running_batch(studio_url: str, browser: Any, artifacts: Path) -> None:
+    page, console_errors = _open(browser, studio_url)
+    _choose(page, "a_single_lane", "straight")
+    page.fill("input[name=name]", "e2e-cancel")
+    for name, value in (("runs", "40"), ("warmup_s", "5"), ("timeout_s", "20")):
+        page.fill(f"input[name={name}]", value)
+    _save(page)
+    page.click("#run")
+    cancel = page.locator("#cancel")
+    cancel.wait_for(state="visible")
+    page.wait_for_function("document.querySelector('#progress-text').textContent.includes(' running')",
+                           timeout=START_TIMEOUT_MS)
+    page.screenshot(path=str(artifacts / "07-before-cancel.png"), full_page=True)
+    cancel.click()
+    page.wait_for_selector("#progress-text[data-status=cancelled]", timeout=START_TIMEOUT_MS)
+    assert page.inner_text("#progress-text").endswith("cancelled")
+    assert cancel.is_hidden()
+    page.wait_for_selector("#batch-status:has-text('cancelled')")
+    recorded = int(re.search(r"\((\d+)/40 recorded", page.inner_text("#summary")).group(1))  # type: ignore[union-attr]
+    assert recorded < 40
+    assert "cancelled" in page.locator("#batches tr", has_text="e2e-cancel").first.inner_text()
+    page.screenshot(path=str(artifacts / "08-cancelled.png"), full_page=True)
+    assert not console_errors, console_errors
+
+
+def test_upload_a_network_and_drive_it_live(studio_url: str, browser: Any, artifacts: Path) -> None:
+    page, console_errors = _open(browser, studio_url)
+    # Not a network: the reason appears next to the file field, nothing becomes selectable.
+    page.set_input_files("#net-file", {"name": "routes.net.xml", "mimeType": "application/xml",
+                                       "buffer": b'<routes><vehicle id="a"/></routes>'})
+    page.click("#upload")
+    error = page.locator(".field-error[data-for='file']")
+    error.wait_for()
+    assert "not a SUMO network" in error.inner_text()
+    assert page.locator("#uploaded option").count() == 0
+    page.screenshot(path=str(artifacts / "09-upload-error.png"), full_page=True)
+
+    page.set_input_files("#net-file", str(sumo_example(SUMO_CROSS_NET)))
+    page.click("#upload")
+    page.wait_for_function(
+        "document.querySelector('#preview text')?.textContent.includes('cross.net.xml (uploaded)')")
+    assert page.locator(".field-error").count() == 0
+    selected = page.eval_on_selector("select[name=intersection]", "s => s.selectedOptions[0].textContent")
+    assert selected == "cross.net.xml (uploaded)"
+    assert page.locator("#preview polyline.candidate").count() >= 1
+    page.locator("#preview rect.ego-start").wait_for()
+    page.screenshot(path=str(artifacts / "10-uploaded.png"), full_page=True)
+
+    # One episode on the uploaded network, live in the 3D view (the form's scenario, unsaved).
+    page.fill("input[name=name]", "e2e-live")
+    page.fill("input[name=warmup_s]", "5")
+    page.fill("input[name=timeout_s]", "20")
+    page.fill("#live-seed", "5")
+    with page.context.expect_page() as opened:
+        page.click("#live")
+    viewer = opened.value
+    viewer.wait_for_url(VIEWER_RE, timeout=START_TIMEOUT_MS)
+    _viewer_shot(viewer, artifacts / "11-live.png")
+    page.bring_to_front()  # a background tab's timers (the status poll) are throttled
+    page.wait_for_selector(".live-state[data-status=running], .live-state[data-status=done]",
+                           timeout=START_TIMEOUT_MS)
+    page.screenshot(path=str(artifacts / "12-live-status.png"), full_page=True)
+    if page.locator("#live-stop").is_visible():
+        page.click("#live-stop")
+    page.wait_for_selector(".live-state[data-status=stopped], .live-state[data-status=done]",
+                           timeout=START_TIMEOUT_MS)
     viewer.close()
     assert not console_errors, console_errors

@@ -173,3 +173,16 @@ def test_cli_evaluate_json(scenario_file: Path, tmp_path: Path, monkeypatch: pyt
     assert table.read_text().count("\n") == 2  # header + one batch
     missing = CliRunner().invoke(app, ["report", "999", "--db", db, "-o", str(report)])
     assert missing.exit_code == 2 and "no batch 999" in missing.output
+
+
+def test_cli_evaluate_checks_the_network_before_any_batch(tmp_path: Path) -> None:
+    """A field only the network contradicts (a lane that is not on the approach) stops the
+    command with the field named, before a batch is stored or an episode runs."""
+    path = tmp_path / "bad-lane.yaml"
+    path.write_text(yaml.safe_dump({**TINY, "name": "bad-lane", "ego": {"entrance_lane": "nope_0"}}))
+    db = f"sqlite:///{tmp_path / 'cli.db'}"
+    out = CliRunner().invoke(app, ["evaluate", str(path), "--policy", "rule", "--runs", "2",
+                                   "--workers", "1", "--db", db])
+    assert out.exit_code == 2 and "ego.entrance_lane" in out.output and "'nope_0'" in out.output
+    with open_store(db) as store, store.session() as s:
+        assert crud.list_batches(session=s) == []

@@ -20,7 +20,8 @@ from rl.test_train import tiny
 def test_export_keeps_the_networks_and_writes_a_card(tmp_path: Path, path_set, model) -> None:
     run = train(tiny(tmp_path, iterations=3, run_name="apg"))
     out = tmp_path / "models" / "apg.pt"
-    result = CliRunner().invoke(app, ["export", str(run), "-o", str(out)])
+    result = CliRunner().invoke(app, ["export", str(run), "-o", str(out), "--note", "passes 0 of 0",
+                                      "--note", "second line"])
     assert result.exit_code == 0, result.output
 
     shipped, config = load_networks(out)
@@ -34,6 +35,11 @@ def test_export_keeps_the_networks_and_writes_a_card(tmp_path: Path, path_set, m
     assert card["algo"] == "apg" and card["iterations_done"] == 3
     assert {"losses/J_pi", "charts/TAR"} <= set(card["final"])
     assert card["hardware"]["torch"] == torch.__version__ and card["wall_time_s"] > 0
+    assert card["paper_iterations"] == 200_000 and card["fraction_of_paper"] == round(3 / 200_000, 4)
+    assert card["notes"] == ["passes 0 of 0", "second line"]
+    # the tiny test config differs from the paper's in its network size, among others
+    assert card["changed_from_defaults"]["hidden_units"]["default"] == 256
+    assert "algo" not in card["changed_from_defaults"] and "out" not in card["changed_from_defaults"]
     assert load_controller(str(out)).name == "apg"  # drives as --policy models/apg.pt
 
     missing = CliRunner().invoke(app, ["export", str(tmp_path / "nowhere"), "-o", str(out)])

@@ -1,6 +1,6 @@
 """Dependencies shared by the routes: settings, the store and a session on it, the job registry.
 
-The store and the registry are opened once by the app's lifespan (``api/main.py``) and live on
+The store, the job registry and the live runs are opened once by the app's lifespan (``api/main.py``) and live on
 ``app.state``; routes never open their own. Errors of user input are raised through
 :func:`unprocessable`, so every 422 of the API has FastAPI's own shape
 (``{"detail": [{"loc": [...], "msg": ..., "type": ...}]}``) and names the field.
@@ -17,6 +17,7 @@ from fastapi import Depends, HTTPException, Request
 from sqlalchemy.orm import Session
 
 from crossroads.api.jobs import JobRegistry
+from crossroads.api.live import LiveRuns
 from crossroads.settings import Settings
 from crossroads.store import Store
 
@@ -60,11 +61,19 @@ def get_jobs(request: Request) -> JobRegistry:
     return jobs
 
 
+def get_live(request: Request) -> LiveRuns:
+    live = getattr(request.app.state, "live", None)
+    if live is None:
+        raise HTTPException(status_code=503, detail="live runs are not available (the app is not started)")
+    return live
+
+
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 OptionsDep = Annotated[ApiOptions, Depends(get_options)]
 StoreDep = Annotated[Store, Depends(get_store)]
 SessionDep = Annotated[Session, Depends(get_session)]
 JobsDep = Annotated[JobRegistry, Depends(get_jobs)]
+LiveDep = Annotated[LiveRuns, Depends(get_live)]
 
 
 def loc_of(field: str, prefix: Sequence[str | int] = ("body",)) -> list[str | int]:

@@ -5,72 +5,145 @@ of this process; the runner's executor runs the episodes in worker processes (or
 neither a request nor the event loop ever waits on a simulation. The registry knows the live
 jobs (progress, cancel); once a job ends, the store is the truth about its batch.
 
+At most ``max_running`` batches run at once (each one starts its own worker processes, so an
+unbounded number would swamp the machine); a batch started beyond that waits in a FIFO queue,
+keeps its stored status ``queued``, and starts when a running one ends.
+
 A batch that cannot even start (its network does not build, its policy does not load) is marked
-``failed`` with the reason, so no batch is left ``queued`` forever by this process.
+``failed`` with the reason, so no batch is left ``queued`` forever by this process. On shutdown
+the running batches are stopped and put back to ``queued``: :meth:`JobRegistry.resume_unfinished`
+at the next start goes on with them (the runner skips every run already recorded).
 """
 
 from __future__ import annotations
 
 import logging
 import threading
+from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal, Protocol
 
-from crossroads.evaluation.batch import BatchRunner, Progress, make_executor
+from crossroads.evaluation.batch import BatchResult, BatchRunner, Progress, make_executor
 from crossroads.store import Store, crud
 from crossroads.store.crud import FINISHED_STATUSES
 
 log = logging.getLogger(__name__)
 
+CancelOutcome = Literal["cancelling", "dequeued"]
+
+
+class Runner(Protocol):
+    """What the registry needs of a batch runner (a :class:`BatchRunner`, or a test's fake)."""
+
+    @property
+    def progress(self) -> Progress: ...
+
+    def run(self) -> BatchResult: ...
+
+    def cancel(self) -> None: ...
+
+
+RunnerFactory = Callable[[int, int | None], Runner]  # (batch id, workers) -> a runner
+
 
 @dataclass
 class Job:
+    """One batch of this process: waiting in the queue (no thread yet) or started."""
+
     batch_id: int
-    runner: BatchRunner
-    thread: threading.Thread
+    workers: int | None
+    runner: Runner | None = None
+    thread: threading.Thread | None = None
     error: str | None = None
+    cancel_asked: bool = False  # by a user (a shutdown's stop is not a cancel)
 
     @property
     def alive(self) -> bool:
-        return self.thread.is_alive()
+        return self.thread is not None and self.thread.is_alive()
+
+    @property
+    def waiting(self) -> bool:
+        return self.thread is None
 
 
 class JobRegistry:
-    """The batches this API process runs: submit, progress, cancel, shutdown."""
+    """The batches this API process runs: submit (run or queue), progress, cancel, resume,
+    shutdown. Thread-safe; every method returns at once except :meth:`shutdown`."""
 
-    def __init__(self, store: Store, *, data_dir: str | Path, ray_address: str | None = None) -> None:
+    def __init__(self, store: Store, *, data_dir: str | Path, ray_address: str | None = None,
+                 max_running: int = 2, runner_factory: RunnerFactory | None = None) -> None:
+        if max_running < 1:
+            raise ValueError(f"max_running must be >= 1, got {max_running}")
         self.store = store
         self.data_dir = Path(data_dir)
         self.ray_address = ray_address
+        self.max_running = max_running
+        self._make_runner = runner_factory or self._batch_runner
         self._jobs: dict[int, Job] = {}
+        self._active: set[int] = set()  # started and not yet ended (decides when the queue moves)
+        self._queue: deque[int] = deque()
+        self._closing = False
         self._lock = threading.Lock()
 
+    def _batch_runner(self, batch_id: int, workers: int | None) -> Runner:
+        executor = make_executor(workers=workers, ray_address=self.ray_address)
+        return BatchRunner(self.store, batch_id, data_dir=self.data_dir, executor=executor)
+
+    # --- submitting ------------------------------------------------------------------------------
+
     def submit(self, batch_id: int, *, workers: int | None = None) -> Job:
-        """Start running the stored batch ``batch_id`` in the background; returns at once."""
+        """Run the stored batch ``batch_id`` in the background, or queue it when
+        ``max_running`` batches run already; returns at once."""
         with self._lock:
             current = self._jobs.get(batch_id)
-            if current is not None and current.alive:
+            if current is not None and (current.waiting or batch_id in self._active):
                 return current
-            executor = make_executor(workers=workers, ray_address=self.ray_address)
-            runner = BatchRunner(self.store, batch_id, data_dir=self.data_dir, executor=executor)
-            thread = threading.Thread(target=self._run, args=(batch_id, runner), daemon=True,
-                                      name=f"crossroads-api-batch-{batch_id}")
-            job = Job(batch_id, runner, thread)
+            job = Job(batch_id, workers)
             self._jobs[batch_id] = job
-            thread.start()
+            if self._closing:
+                return job  # stays queued in the store; the next start resumes it
+            if len(self._active) < self.max_running:
+                self._start(job)
+            else:
+                self._queue.append(batch_id)
             return job
 
-    def _run(self, batch_id: int, runner: BatchRunner) -> None:
+    def _start(self, job: Job) -> None:
+        """Start ``job``'s thread (the lock is held)."""
+        job.runner = self._make_runner(job.batch_id, job.workers)
+        job.thread = threading.Thread(target=self._run, args=(job,), daemon=True,
+                                      name=f"crossroads-api-batch-{job.batch_id}")
+        self._active.add(job.batch_id)
+        job.thread.start()
+
+    def _run(self, job: Job) -> None:
         try:
-            runner.run()
+            if self._still_wanted(job.batch_id):
+                assert job.runner is not None
+                job.runner.run()
         except BaseException as exc:  # noqa: BLE001 - a job's end is recorded, never raised
             message = f"{type(exc).__name__}: {exc}"
-            log.warning("batch %s failed: %s", batch_id, message)
-            with self._lock:
-                job = self._jobs.get(batch_id)
-                if job is not None:
-                    job.error = message
-            self._mark_failed(batch_id, message)
+            log.warning("batch %s failed: %s", job.batch_id, message)
+            job.error = message
+            self._mark_failed(job.batch_id, message)
+        finally:
+            self._ended(job.batch_id)
+
+    def _still_wanted(self, batch_id: int) -> bool:
+        """False when the stored batch has ended meanwhile (e.g. cancelled by another process
+        while it waited): running it would overwrite that."""
+        with self.store.session() as session:
+            batch = crud.get_batch(session=session, batch_id=batch_id)
+            return batch is not None and batch.status not in FINISHED_STATUSES
+
+    def _ended(self, batch_id: int) -> None:
+        """A job's thread is about to end: free its slot and start the next queued batches."""
+        with self._lock:
+            self._active.discard(batch_id)
+            while self._queue and not self._closing and len(self._active) < self.max_running:
+                self._start(self._jobs[self._queue.popleft()])
 
     def _mark_failed(self, batch_id: int, message: str) -> None:
         """A runner that failed before it could set the batch's status (e.g. in its plan)."""
@@ -83,35 +156,88 @@ class JobRegistry:
         except Exception:  # noqa: BLE001 - the store itself is gone (shutdown)
             log.exception("cannot mark batch %s failed", batch_id)
 
+    def resume_unfinished(self) -> list[int]:
+        """Submit every stored batch still ``queued`` or ``running`` (left by a process that
+        stopped), oldest first; the runner skips the runs already recorded, so none is run or
+        counted twice. Returns their ids."""
+        with self.store.session() as session:
+            rows = [(b.id, b.workers) for b in crud.unfinished_batches(session=session)]
+        for batch_id, workers in rows:
+            self.submit(batch_id, workers=workers)
+        if rows:
+            log.info("resuming %d unfinished batch(es): %s", len(rows), ", ".join(str(r[0]) for r in rows))
+        return [batch_id for batch_id, _ in rows]
+
+    # --- reading ---------------------------------------------------------------------------------
+
     def get(self, batch_id: int) -> Job | None:
         with self._lock:
             return self._jobs.get(batch_id)
 
     def live_progress(self, batch_id: int) -> Progress | None:
-        """The runner's progress while its job runs; ``None`` once it ended (ask the store)."""
+        """The runner's progress while its job runs; ``None`` otherwise (ask the store)."""
         job = self.get(batch_id)
-        if job is None or not job.alive:
+        if job is None or job.runner is None or not job.alive:
             return None
         return job.runner.progress
 
     def running(self) -> list[int]:
         with self._lock:
-            return [b for b, j in self._jobs.items() if j.alive]
+            return sorted(self._active)
 
-    def cancel(self, batch_id: int) -> bool:
-        """Ask a live job to stop (runs in flight are dropped; the batch ends ``cancelled``).
-        False when this process runs no such job."""
-        job = self.get(batch_id)
-        if job is None or not job.alive:
-            return False
-        job.runner.cancel()
-        return True
+    def queued(self) -> list[int]:
+        """The waiting batches, next first."""
+        with self._lock:
+            return list(self._queue)
+
+    def queue_position(self, batch_id: int) -> int | None:
+        """1 for the next batch to start, ...; None when ``batch_id`` does not wait here."""
+        with self._lock:
+            try:
+                return self._queue.index(batch_id) + 1
+            except ValueError:
+                return None
+
+    # --- stopping --------------------------------------------------------------------------------
+
+    def cancel(self, batch_id: int) -> CancelOutcome | None:
+        """Cancel a batch of this process: a running one is asked to stop soon (``"cancelling"``:
+        runs in flight are dropped; it ends ``cancelled``), a waiting one leaves the queue at once
+        (``"dequeued"``: the caller records ``cancelled``). None: this process has no such job."""
+        with self._lock:
+            if batch_id in self._queue:
+                self._queue.remove(batch_id)
+                del self._jobs[batch_id]
+                return "dequeued"
+            job = self._jobs.get(batch_id)
+            if job is None or job.runner is None or batch_id not in self._active:
+                return None
+            job.cancel_asked = True
+            job.runner.cancel()
+            return "cancelling"
 
     def shutdown(self, timeout_s: float = 10.0) -> None:
-        """Cancel every live job and wait (bounded) for their threads."""
+        """Stop every running job and wait (bounded) for their threads. Batches stopped this
+        way, and the queued ones, are left ``queued`` in the store for the next start."""
         with self._lock:
-            jobs = list(self._jobs.values())
+            self._closing = True
+            self._queue.clear()
+            jobs = [self._jobs[b] for b in self._active]
         for job in jobs:
+            assert job.runner is not None
             job.runner.cancel()
         for job in jobs:
+            assert job.thread is not None
             job.thread.join(timeout_s)
+            if not job.alive and not job.cancel_asked and job.error is None:
+                self._requeue(job.batch_id)
+
+    def _requeue(self, batch_id: int) -> None:
+        """A batch the shutdown stopped (the runner recorded ``cancelled``): back to ``queued``."""
+        try:
+            with self.store.session() as session:
+                batch = crud.get_batch(session=session, batch_id=batch_id)
+                if batch is not None and batch.status == "cancelled":
+                    crud.set_batch_status(session=session, batch_id=batch_id, status="queued")
+        except Exception:  # noqa: BLE001 - the store went first; the batch stays as it is
+            log.exception("cannot put batch %s back in the queue", batch_id)

@@ -1,7 +1,9 @@
 """The Crossroads API: a FastAPI app built from Settings; routers per resource in routes/.
 
-The lifespan opens (and migrates) the results store named by the settings and starts the batch
-job registry; on shutdown it cancels the running batches and closes the store.
+The lifespan opens (and migrates) the results store named by the settings, starts the batch
+job registry (at most ``max_concurrent_batches`` running, the rest queued) and resumes the
+batches a previous process left queued or running (``resume_batches``); on shutdown it stops the
+live runs and the running batches (left ``queued`` for the next start) and closes the store.
 """
 
 from __future__ import annotations
@@ -15,11 +17,13 @@ from fastapi.responses import JSONResponse
 from crossroads import __version__
 from crossroads.api.deps import ApiOptions
 from crossroads.api.jobs import JobRegistry
+from crossroads.api.live import LiveRuns
 from crossroads.api.routes import (
     batches,
     episodes,
     health,
     intersections,
+    live,
     playback,
     policies,
     reports,
@@ -42,13 +46,18 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     settings: Settings = app.state.settings
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     store = open_store(settings.database_url)
-    jobs = JobRegistry(store, data_dir=settings.data_dir, ray_address=settings.ray_address)
-    app.state.store, app.state.jobs = store, jobs
+    jobs = JobRegistry(store, data_dir=settings.data_dir, ray_address=settings.ray_address,
+                       max_running=settings.max_concurrent_batches)
+    live_runs = LiveRuns(host=settings.host)
+    app.state.store, app.state.jobs, app.state.live = store, jobs, live_runs
+    if settings.resume_batches:
+        jobs.resume_unfinished()  # returns at once: the batches run in the background
     try:
         yield
     finally:
+        live_runs.shutdown()
         jobs.shutdown(SHUTDOWN_WAIT_S)
-        app.state.store = app.state.jobs = None
+        app.state.store = app.state.jobs = app.state.live = None
         store.close()
 
 
@@ -62,7 +71,7 @@ def create_app(settings: Settings | None = None, options: ApiOptions | None = No
     )
     app.state.settings = settings
     app.state.options = options or ApiOptions()
-    app.state.store = app.state.jobs = None
+    app.state.store = app.state.jobs = app.state.live = None
     app.include_router(health.router, prefix="/api")
     app.include_router(uploads.router, prefix="/api")  # before /intersections/{name}
     app.include_router(intersections.router, prefix="/api")
@@ -72,6 +81,7 @@ def create_app(settings: Settings | None = None, options: ApiOptions | None = No
     app.include_router(episodes.router, prefix="/api")
     app.include_router(reports.router, prefix="/api")
     app.include_router(playback.router, prefix="/api")
+    app.include_router(live.router, prefix="/api")
 
     # Domain errors become clear HTTP answers in one place, not in every route.
     @app.exception_handler(NetworkNotFoundError)

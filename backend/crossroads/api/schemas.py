@@ -72,6 +72,8 @@ class BatchAccepted(BaseModel):
     status: str
     url: str
     events: str
+    queue_position: int | None = Field(
+        None, description="set when the batch waits for a free slot (1 = next to start)")
 
 
 class BatchProgress(BaseModel):
@@ -113,6 +115,9 @@ class BatchPublic(BaseModel):
     started_at: datetime | None
     finished_at: datetime | None
     progress: BatchProgress
+    queue_position: int | None = Field(
+        None, description="while the batch waits for a free slot (settings: max_concurrent_batches): "
+        "1 = next to start; null otherwise")
     summary: BatchSummary | None = Field(None, description="only in GET /batches/{id}")
 
 
@@ -135,3 +140,41 @@ class EpisodePublic(BaseModel):
     error_message: str | None
     wall_s: float | None
     has_trace: bool
+
+
+# --- live runs ------------------------------------------------------------------------------------
+
+MAX_SUMO_SEED = 2**31 - 1  # SUMO's --seed is a C int
+
+
+class LiveCreate(BaseModel):
+    """One episode of a scenario shown live in the 3D view: a stored scenario (``scenario_id``)
+    or one given inline (``scenario``, not stored), a policy and a seed."""
+
+    model_config = _IN
+
+    scenario_id: int | None = Field(None, ge=1, description="id of a stored scenario")
+    scenario: dict[str, Any] | None = Field(None, description="a scenario given inline (not stored)")
+    policy: str = Field("rule", min_length=1, max_length=200,
+                        description="'rule' or the name of a checkpoint listed by GET /policies")
+    seed: int | None = Field(None, ge=0, le=MAX_SUMO_SEED,
+                             description="the episode's seed; default: the seed of run 0 of the "
+                             "scenario's batches (so the live run replays it)")
+    speed: float = Field(1.0, ge=0.0, le=16.0,
+                         description="pace: 1 = real time, 2 = twice as fast, 0 = as fast as it runs")
+
+
+class LivePublic(BaseModel):
+    id: int
+    scenario: str
+    policy: str
+    seed: int
+    speed: float
+    status: Literal["starting", "waiting", "running", "done", "failed", "stopped"] = Field(
+        description="starting: building the world; waiting: for a viewer tab (a few seconds at "
+        "most); running; then done (see result), failed (see error) or stopped")
+    frames: int = Field(description="steps drawn in the viewer so far")
+    result: dict[str, Any] | None = Field(None, description="the episode's result once done")
+    error: str | None = None
+    port: int
+    url: str = Field(description="the 3D view: open it in a browser tab")

@@ -17,6 +17,7 @@ import hashlib
 import multiprocessing as mp
 import os
 import signal
+import sys
 import threading
 import time
 import traceback
@@ -133,6 +134,8 @@ class EpisodeWorker:
                                            check_references=False)
         if self._controller is None:
             self._controller = load_controller(self.job.policy_ref)
+            if "torch" in sys.modules:  # a trained policy: one worker, one core (K workers on K cores);
+                sys.modules["torch"].set_num_threads(1)  # torch's default would oversubscribe them
         if self._world is None:
             self._world = World(to_world_config(self._spec, base_dir=self.job.base_dir))
         return self._world, self._controller

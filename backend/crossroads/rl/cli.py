@@ -17,14 +17,10 @@ from typing import Annotated, Optional
 
 import typer
 
+from crossroads.cli_errors import fail
+
 app = typer.Typer(help="Train the IDC networks by APG (adversarial) or DPG (baseline).",
                   invoke_without_command=True, pretty_exceptions_enable=False)
-
-
-def fail(message: str, code: int = 2) -> typer.Exit:
-    """One red line on stderr; raise the returned Exit (status 2: bad input)."""
-    typer.secho(f"error: {message}", err=True, fg=typer.colors.RED)
-    return typer.Exit(code=code)
 
 
 @app.callback()
@@ -133,12 +129,14 @@ def plot_command(
 def export_command(
     run: Annotated[Path, typer.Argument(metavar="RUN_DIR|CHECKPOINT", help="a training run or checkpoint")],
     out: Annotated[Path, typer.Option("-o", "--out", metavar="MODEL.pt", help="e.g. models/apg.pt")],
+    note: Annotated[list[str] | None, typer.Option(
+        help="a line for the card's notes, e.g. what the model measured (repeatable)")] = None,
 ) -> None:
     """Ship a run's networks as MODEL.pt with its model card (MODEL.card.json)."""
     from crossroads.rl.export import export_model
 
     try:
-        model, card = export_model(run, out)
+        model, card = export_model(run, out, tuple(note or ()))
     except (FileNotFoundError, ValueError) as exc:
         raise fail(str(exc)) from None
     typer.echo(f"model: {model} ({model.stat().st_size / 1e6:.1f} MB)\ncard: {card}")

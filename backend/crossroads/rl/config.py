@@ -102,6 +102,14 @@ class TrainConfig:
     """(choice) The first rounds drive with the rule-based controller (idc.rule_based): an untrained
     policy leaves the road within a few steps and would only show states near the episode starts.
     Later rounds drive with the current policy's mean action plus exploration noise."""
+    rule_share: float = 0.25
+    """(choice) After the first `rule_rounds`, each round is still driven by the rule-based
+    controller with this probability (drawn from the round's generator): the buffer keeps states
+    near the paths while the policy is poor, not only the states of its own mistakes."""
+    demand_scale: tuple[float, float] = (0.0, 1.5)
+    """(choice) Each sampling episode's traffic (SPEC §2 densities) is scaled by a factor drawn
+    uniformly in this range, so the policy also sees empty and busier scenes (an empty scene makes
+    every slot of x_other a pad, which nominal traffic never shows). (1, 1): always SPEC §2."""
     explore_std: float = 0.1
     """(choice) Exploration noise of the sampling policy: Gaussian, this fraction of each action's
     half range (Δδ: 0.04 rad/s, Δa: 0.45 m/s³), clipped to the action ranges."""
@@ -156,6 +164,11 @@ class TrainConfig:
             raise ValueError(f"workers: must be ≥ 0, got {self.workers}")
         if self.samples_per_iteration <= 0:
             raise ValueError("samples_per_iteration: must be > 0")
+        if not 0.0 <= self.rule_share <= 1.0:
+            raise ValueError(f"rule_share: must lie in [0, 1], got {self.rule_share}")
+        low, high = self.demand_scale
+        if not 0.0 <= low <= high:
+            raise ValueError(f"demand_scale: need 0 <= low <= high, got {self.demand_scale}")
         if self.learning_starts < self.batch_size:
             object.__setattr__(self, "learning_starts", self.batch_size)
         bad = [t for t in self.tasks if t not in TASKS]

@@ -18,7 +18,9 @@ from typing import Any
 
 import torch
 
+from crossroads.constants import TOTAL_ITERATIONS
 from crossroads.rl.checkpoint import FORMAT, load_checkpoint
+from crossroads.rl.config import TrainConfig
 
 NETWORK_KEYS = ("policy", "value", "adversary")
 
@@ -31,8 +33,24 @@ def _metrics(run_dir: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(f))
 
 
-def model_card(run_dir: Path, checkpoint: dict[str, Any], source: Path) -> dict[str, Any]:
-    """What a user should know about a model: how it was trained and how far it got."""
+def changed_from_defaults(config: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """The training options of ``config`` that differ from the defaults (the paper's numbers and the
+    documented choices of :class:`~crossroads.rl.config.TrainConfig`): ``{field: {"run", "default"}}``.
+    Bookkeeping fields (where the run lives, logging, progress bar) are left out."""
+    defaults = TrainConfig().to_json()
+    skip = {"algo", "out", "run_name", "progress", "tensorboard", "checkpoint_every", "log_every", "iterations"}
+
+    def norm(v: Any) -> Any:
+        return list(v) if isinstance(v, tuple | list) else v
+
+    return {k: {"run": norm(config[k]), "default": norm(v)} for k, v in defaults.items()
+            if k in config and k not in skip and norm(config[k]) != norm(v)}
+
+
+def model_card(run_dir: Path, checkpoint: dict[str, Any], source: Path,
+               notes: tuple[str, ...] = ()) -> dict[str, Any]:
+    """What a user should know about a model: how it was trained, how far it got against the
+    paper's 200 000 iterations, what differs from the defaults, and the exporter's notes."""
     # the log rows up to the checkpoint's iteration: later rows describe weights not in the file
     rows = [r for r in _metrics(run_dir) if int(r["iteration"]) <= int(checkpoint["iteration"])]
     last = rows[-1] if rows else {}
@@ -42,6 +60,10 @@ def model_card(run_dir: Path, checkpoint: dict[str, Any], source: Path) -> dict[
         "algo": config.get("algo"),
         "iterations_done": int(checkpoint["iteration"]),
         "iterations_planned": config.get("iterations"),
+        "paper_iterations": TOTAL_ITERATIONS,
+        "fraction_of_paper": round(int(checkpoint["iteration"]) / TOTAL_ITERATIONS, 4),
+        "changed_from_defaults": changed_from_defaults(config),
+        "notes": list(notes),
         "wall_time_s": round(wall_s, 1),
         "hardware": {
             "machine": platform.machine(),
@@ -58,8 +80,9 @@ def model_card(run_dir: Path, checkpoint: dict[str, Any], source: Path) -> dict[
     }
 
 
-def export_model(run: Path, out: Path) -> tuple[Path, Path]:
-    """Write ``out`` (networks + config) and ``out`` with ``.card.json`` from a run or checkpoint."""
+def export_model(run: Path, out: Path, notes: tuple[str, ...] = ()) -> tuple[Path, Path]:
+    """Write ``out`` (networks + config) and ``out`` with ``.card.json`` from a run or checkpoint;
+    ``notes`` (free text, e.g. what the model measured) go into the card."""
     run = Path(run)
     checkpoint = load_checkpoint(run)
     run_dir = run if run.is_dir() else run.parent.parent
@@ -75,5 +98,5 @@ def export_model(run: Path, out: Path) -> tuple[Path, Path]:
     torch.save(model, tmp)
     tmp.replace(out)
     card_path = out.with_suffix(".card.json")
-    card_path.write_text(json.dumps(model_card(run_dir, checkpoint, run), indent=2) + "\n")
+    card_path.write_text(json.dumps(model_card(run_dir, checkpoint, run, notes), indent=2) + "\n")
     return out, card_path

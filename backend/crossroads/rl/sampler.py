@@ -11,11 +11,14 @@ run re-issues the round that was in flight with the weights saved for it.
 
 Driving **(choice)**: rounds r < ``rule_rounds`` drive with the rule-based controller (an untrained
 policy leaves the road within a few steps); later rounds with the policy's mean action on τ plus
-Gaussian exploration noise (``explore_std`` of each half range), clipped. The speed mode is the
+Gaussian exploration noise (``explore_std`` of each half range), clipped, except a share
+``rule_share`` of them, still driven by the rule controller. Each episode's traffic is SPEC §2's
+scaled by a factor drawn from ``demand_scale``. The speed mode is the
 paper's light logic (``idc.lights.choose_speed_mode``): before the stop line pass on green and stop
 on red as training demands (SPEC §2), the yellow rule on yellow, pass once past the line, stop
-behind a stopped queue. With the rule driver the recorded path is still the drawn τ (the rule driver
-follows the candidate nearest its start; from a state the model tracks τ).
+behind a stopped queue. The rule driver is given τ as its only candidate, so every recorded state lies
+near the path it is recorded with: states recorded against another candidate than the one driven
+(metres off to the side) made the road penalty dwarf everything else and saturated the policy.
 
 Per step the worker records the ego (8), the 16 others (``idc.state.select_others`` of the perceived,
 noisy observations) and each one's curvature 1/R (``World.curvatures`` of their true lanes, put in the
@@ -46,6 +49,7 @@ from crossroads.rl.buffer import Samples
 from crossroads.rl.config import TrainConfig
 from crossroads.sim.config import EgoStart, SignalStart, WorldConfig
 from crossroads.sim.ego import clip_action
+from crossroads.sim.traffic import TrafficDemand
 from crossroads.sim.world import Observation, World
 
 PolicyWeights = dict[str, np.ndarray]  # a policy's state_dict as numpy arrays (picklable everywhere)
@@ -107,6 +111,14 @@ def others_and_curvature(world: World, obs: Observation) -> tuple[np.ndarray, np
     kappa_rows[:, 2] = world.curvatures(obs.participants, seen.rows)
     kappa = select_others(obs.ego, kappa_rows, seen.kinds)[:, 2]  # pads: speed 0 → κ 0
     return others, kappa
+
+
+def scaled_demand(factor: float) -> TrafficDemand:
+    """SPEC §2 traffic with every density multiplied by ``factor``."""
+    nominal = TrafficDemand()
+    return TrafficDemand(vehicles_per_hour=factor * nominal.vehicles_per_hour,
+                         cyclists_per_hour=factor * nominal.cyclists_per_hour,
+                         pedestrians_per_hour=factor * nominal.pedestrians_per_hour)
 
 
 def speed_mode(obs: Observation) -> str:
@@ -178,7 +190,8 @@ class EpisodeSampler:
             signal_start=SignalStart(phase_index=phase, elapsed_s=min(elapsed, durations[phase] - 0.1)),
             ego_start=EgoStart(distance_to_stop_line_m=float(rng.uniform(*cfg.start_distance_m)),
                                speed_mps=float(rng.uniform(*cfg.start_speed_mps))),
-            warmup_s=cfg.warmup_s, timeout_s=cfg.max_episode_steps * 0.1 + 1.0)
+            warmup_s=cfg.warmup_s, timeout_s=cfg.max_episode_steps * 0.1 + 1.0,
+            demand=scaled_demand(float(rng.uniform(*cfg.demand_scale))))
         return world_cfg, name, task, j
 
     def round(self, round_index: int, weights: PolicyWeights | None) -> Samples:
@@ -187,7 +200,8 @@ class EpisodeSampler:
         cfg = self.config
         rng = np.random.default_rng([cfg.seed, self.worker_id, round_index])
         world_cfg, name, task, j = self.episode_config(rng)
-        use_rule = round_index < cfg.rule_rounds or weights is None
+        coin = rng.random()  # drawn in every round, so the stream of draws never depends on the round
+        use_rule = round_index < cfg.rule_rounds or weights is None or coin < cfg.rule_share
         self.load_weights(weights)
         world = World(world_cfg)
         # the drawn candidate's entrance lane is the ego's start lane when it is one of the approach's
@@ -205,7 +219,7 @@ class EpisodeSampler:
                 from crossroads.idc.rule_based import RuleBasedController
 
                 rule = RuleBasedController()
-                rule.reset(world.candidates)
+                rule.reset([path])
             noise_scale = cfg.explore_std * np.array([STEER_RATE_MAX, JERK_MAX])
             for _ in range(cfg.max_episode_steps):
                 others, kappa = others_and_curvature(world, obs)

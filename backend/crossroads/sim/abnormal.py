@@ -165,6 +165,8 @@ class AbnormalTraffic:
 
     def _choose(self, session: SumoSession) -> None:
         cfg = self.config
+        if not session.departed_last_step:
+            return  # most steps: nobody new (the sets below cost more than the rest of the step here)
         persons = set(session.person_ids)
         for vid in session.departed_last_step:
             if vid in self._seen or vid in persons:
@@ -234,6 +236,8 @@ class AbnormalTraffic:
     def update(self, session: SumoSession) -> frozenset[str]:
         """Choose among the newly departed, drive the rounding ones; returns ``abnormal_ids``."""
         self._choose(session)
+        if not self.kinds:
+            return self.abnormal_ids
         alive = set(session.vehicle_ids)
         for vid in [v for v in self.kinds if v not in alive]:
             del self.kinds[vid]

@@ -277,8 +277,7 @@ class World:
     def _perceive(self, snap: Snapshot) -> Perceived:
         mask = covered(self.ego[0], self.ego[1], self.ego[4], snap.x, snap.y, DEFAULT_SENSORS)
         rows = np.flatnonzero(mask)
-        truth = np.column_stack([snap.x[rows], snap.y[rows], snap.speed[rows], snap.heading[rows],
-                                 snap.length[rows], snap.width[rows]])
+        truth = snap.observation_rows[rows]
         kinds = snap.kind[rows]
         observed = (add_noise(truth, snap.kind_code[rows], self._noise_rng)
                     if self.config.perception_noise else truth)

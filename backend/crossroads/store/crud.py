@@ -31,6 +31,7 @@ from crossroads.store.tables import (
 )
 
 FINISHED_STATUSES = ("done", "cancelled", "failed")
+UNFINISHED_STATUSES = tuple(s for s in BATCH_STATUSES if s not in FINISHED_STATUSES)  # queued, running
 HASH_CHUNK = 1 << 20
 
 
@@ -164,6 +165,12 @@ def list_batches(*, session: Session, status: str | Sequence[str] | None = None,
         stmt = stmt.where(Batch.policy_id == policy_id)
     stmt = stmt.order_by(Batch.id.desc()).limit(limit).offset(offset)
     return list(session.scalars(stmt).unique())
+
+
+def unfinished_batches(*, session: Session) -> list[Batch]:
+    """Every batch still queued or running, oldest first (what a restarted service resumes)."""
+    stmt = select(Batch).where(Batch.status.in_(UNFINISHED_STATUSES)).order_by(Batch.id)
+    return list(session.scalars(stmt))
 
 
 def set_batch_status(*, session: Session, batch_id: int, status: str, error: str | None = None,

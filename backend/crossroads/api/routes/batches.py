@@ -66,7 +66,8 @@ def _public(session: Session, batch: Batch, jobs: JobRegistry, summary: BatchSum
         id=batch.id, scenario_id=batch.scenario_id, scenario=batch.scenario.name, policy=batch.policy.name,
         status=batch.status, runs=batch.runs, traces=batch.traces, workers=batch.workers,
         executor=batch.executor, error=batch.error, created_at=batch.created_at,
-        started_at=batch.started_at, finished_at=batch.finished_at, progress=progress, summary=summary)
+        started_at=batch.started_at, finished_at=batch.finished_at, progress=progress,
+        queue_position=jobs.queue_position(batch.id), summary=summary)
 
 
 def _summary(store: Store, batch_id: int) -> BatchSummary:
@@ -77,7 +78,9 @@ def _summary(store: Store, batch_id: int) -> BatchSummary:
 @router.post("", status_code=status.HTTP_202_ACCEPTED)
 def start_batch(body: BatchCreate, session: SessionDep, store: StoreDep, jobs: JobsDep,
                 settings: SettingsDep, options: OptionsDep) -> BatchAccepted:
-    """Store a batch and start it in the background; answers at once with its id (202).
+    """Store a batch and start it in the background; answers at once with its id (202). Beyond
+    the setting max_concurrent_batches running at once, it waits in a queue (status ``queued``,
+    ``queue_position`` in GET /batches/{id}) and starts when a running batch ends.
     Follow it with GET /batches/{id} or the event stream GET /batches/{id}/events."""
     if (body.scenario_id is None) == (body.scenario is None):
         raise unprocessable([("scenario_id", "give exactly one of scenario_id (a stored scenario) "
@@ -97,7 +100,8 @@ def start_batch(body: BatchCreate, session: SessionDep, store: StoreDep, jobs: J
                               base_dir=settings.data_dir, workers=body.workers)
     jobs.submit(batch.id, workers=body.workers)
     return BatchAccepted(id=batch.id, status=batch.status, url=f"/api/batches/{batch.id}",
-                         events=f"/api/batches/{batch.id}/events")
+                         events=f"/api/batches/{batch.id}/events",
+                         queue_position=jobs.queue_position(batch.id))
 
 
 @router.get("")
@@ -127,14 +131,19 @@ def get_batch(batch_id: int, session: SessionDep, store: StoreDep, jobs: JobsDep
 
 @router.post("/{batch_id}/cancel", status_code=status.HTTP_202_ACCEPTED)
 def cancel_batch(batch_id: int, session: SessionDep, jobs: JobsDep) -> dict[str, Any]:
-    """Stop a running batch soon (runs in flight are dropped). 409 when it has ended already."""
+    """Stop a batch: a running one soon (``cancelling``: runs in flight are dropped), a queued
+    one at once (``cancelled``). 409 when it has ended already."""
     batch = _get(session, batch_id)
     if batch.status in FINISHED_STATUSES:
         raise HTTPException(status_code=409, detail=f"batch {batch_id} is {batch.status} already")
-    if not jobs.cancel(batch_id):  # no runner in this process (a previous server's batch)
-        crud.set_batch_status(session=session, batch_id=batch_id, status="cancelled")
-        return {"id": batch_id, "status": "cancelled"}
-    return {"id": batch_id, "status": "cancelling"}
+    if jobs.cancel(batch_id) == "cancelling":
+        return {"id": batch_id, "status": "cancelling"}
+    # Waiting in the queue, or no runner in this process (a previous server's batch): record it.
+    session.refresh(batch)
+    if batch.status in FINISHED_STATUSES:  # its runner ended meanwhile
+        raise HTTPException(status_code=409, detail=f"batch {batch_id} is {batch.status} already")
+    crud.set_batch_status(session=session, batch_id=batch_id, status="cancelled")
+    return {"id": batch_id, "status": "cancelled"}
 
 
 def _sse(event: str, data: dict[str, Any]) -> str:
@@ -147,7 +156,8 @@ def _snapshot(store: Store, batch_id: int, jobs: JobRegistry) -> tuple[dict[str,
         batch = _get(session, batch_id)
         public = _public(session, batch, jobs)
         ended = batch.status in FINISHED_STATUSES and jobs.live_progress(batch_id) is None
-    return {"id": batch_id, "status": public.status, **public.progress.model_dump()}, ended
+    return {"id": batch_id, "status": public.status, "queue_position": public.queue_position,
+            **public.progress.model_dump()}, ended
 
 
 @router.get("/{batch_id}/events", response_class=StreamingResponse,

@@ -6,9 +6,11 @@ from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, HTTPException, Query
 
+from crossroads.evaluation.network_checks import program_json
 from crossroads.constants import RHO_BEZIER
 from crossroads.network import catalogue
 from crossroads.network.export import junction_geometry
+from crossroads.network.model import Junction
 from crossroads.network.resolve import open_junction
 from crossroads.planning import PlanningError, plan_candidates
 
@@ -31,9 +33,38 @@ def list_intersections() -> list[dict[str, Any]]:
 
 @router.get("/{name}")
 def intersection_geometry(name: str) -> dict[str, Any]:
-    """Lanes, junction polygon, medians, crossings, sidewalks and stop lines of one intersection."""
+    """Lanes, junction polygon, medians, crossings, sidewalks and stop lines of one intersection,
+    its signal program (what ``lights.phase`` indexes) and which link of it each movement has."""
     junction = open_junction(name)
-    return {"name": name, **junction_geometry(junction)}
+    return {"name": name, **geometry_with_program(junction)}
+
+
+def signal_links(junction: Junction) -> dict[str, list[dict[str, Any]]]:
+    """Per approach, each signalised movement (entrance lane, turn) and its index into the
+    program's state strings: what tells the editor the ego's light in each phase."""
+    return {a.id: [{"lane": c.from_lane, "turn": c.turn, "link": c.tl_link_index}
+                   for c in a.connections if c.tl_link_index is not None]
+            for a in junction.approaches}
+
+
+def geometry_with_program(junction: Junction) -> dict[str, Any]:
+    """The geometry, the signal program and the signal links of a junction."""
+    return {**junction_geometry(junction), "program": program_json(junction.net_file, junction.tl_id),
+            "signal_links": signal_links(junction)}
+
+
+def paths_of(junction: Junction, task: str, approach: str | None, rho: float) -> list[dict[str, Any]]:
+    """The candidate paths of ``task`` from ``approach`` (default: the south); 422 naming the
+    parameter when there are none."""
+    try:
+        chosen = junction.approach(approach) if approach else junction.default_approach()
+    except KeyError as exc:
+        raise HTTPException(status_code=422, detail=f"approach: {exc.args[0]}") from exc
+    try:
+        candidates = plan_candidates(junction, task, approach=chosen, rho=rho)
+    except PlanningError as exc:
+        raise HTTPException(status_code=422, detail=f"task: {exc}") from exc
+    return [c.to_json() for c in candidates]
 
 
 @router.get("/{name}/paths")
@@ -44,13 +75,4 @@ def candidate_paths(
     rho: Annotated[float, Query(gt=0.0, lt=1.0, description="ρ of the Bezier construction")] = RHO_BEZIER,
 ) -> list[dict[str, Any]]:
     """The candidate paths of a task: one per reachable target lane (SPEC §1)."""
-    junction = open_junction(name)
-    try:
-        chosen = junction.approach(approach) if approach else junction.default_approach()
-    except KeyError as exc:
-        raise HTTPException(status_code=422, detail=f"approach: {exc.args[0]}") from exc
-    try:
-        candidates = plan_candidates(junction, task, approach=chosen, rho=rho)
-    except PlanningError as exc:
-        raise HTTPException(status_code=422, detail=f"task: {exc}") from exc
-    return [c.to_json() for c in candidates]
+    return paths_of(open_junction(name), task, approach, rho)

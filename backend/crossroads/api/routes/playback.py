@@ -71,6 +71,13 @@ def _free_port(host: str) -> int:
         return int(s.getsockname()[1])
 
 
+def viewer_url(request: Request, port: int) -> str:
+    """The URL of a viser server of ours, by the host name the browser reached the API with."""
+    host = request.url.hostname or "127.0.0.1"
+    shown = f"[{host}]" if ":" in host else host
+    return f"http://{shown}:{port}/"
+
+
 def _trace_file(session: Any, batch_id: int, run_index: int, data_dir: Path) -> Path:
     episode = crud.get_episode(session=session, batch_id=batch_id, run_index=run_index)
     if episode is None:
@@ -107,10 +114,8 @@ def open_playback(batch_id: int, run_index: int, request: Request, session: Sess
 
     server = _PLAYERS.get((batch_id, run_index), start)
     port = int(server.server.get_port())
-    host = request.url.hostname or "127.0.0.1"  # the name the browser reached us by
-    shown = f"[{host}]" if ":" in host else host
     return {"batch_id": batch_id, "run_index": run_index, "port": port,
-            "url": f"http://{shown}:{port}/"}
+            "url": viewer_url(request, port)}
 
 
 @router.get("/{batch_id}/{run_index}", response_class=RedirectResponse, status_code=303)

@@ -4,7 +4,9 @@ A scenario is stored by its content hash (the same spec twice is one row). A sce
 batches ran with is read-only (its results refer to it): PUT and DELETE answer 409, and a
 changed scenario is POSTed as a new one. An ``{net: ...}`` intersection must name a network
 uploaded through POST /intersections/upload (``uploads/<sha256>.net.xml``, relative to the data
-directory); the API reads no other file of the server.
+directory); the API reads no other file of the server. What a scenario asks of its network
+(approach, ego start, light phase) is checked against the network
+(``evaluation/network_checks.py``).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from sqlalchemy.orm import Session
 
 from crossroads.api.deps import SessionDep, SettingsDep, unprocessable
 from crossroads.api.schemas import Problem, ScenarioPublic, ScenarioValidation
+from crossroads.evaluation.network_checks import network_problems
 from crossroads.evaluation.scenario import (
     ScenarioSpec,
     canonical_json,
@@ -56,7 +59,9 @@ def scenario_problems(data: Any, settings: Settings) -> tuple[ScenarioSpec | Non
         if net.is_absolute() or ".." in net.parts or net.parts[:1] != (UPLOADS,) or len(net.parts) != 2:
             return None, [("intersection.net", "must name an uploaded network, "
                            f"'{UPLOADS}/<sha256>.net.xml' (POST /api/intersections/upload)")]
-    problems = reference_problems(spec, settings.data_dir)
+    # what the spec names must exist, then agree with its network (approach, ego start, lights);
+    # the data directory is the server's business: messages show it as <data>
+    problems = reference_problems(spec, settings.data_dir) or network_problems(spec, settings.data_dir)
     if problems:
         return None, [(f, m.replace(str(settings.data_dir), "<data>")) for f, m in problems]
     return spec, []

@@ -6,7 +6,8 @@ the raw bytes (entity expansion and external entities need one, so refusing them
 defuses both without a hardened parser); well-formed XML; a ``<net>`` root; and finally the
 junction reader (:func:`crossroads.network.junction.read_junction`), whose message a junction it
 cannot handle gets back as the 422. Only then is the file moved into place as
-``<data_dir>/uploads/<sha256>.net.xml`` (atomically: nothing half-made is ever visible there).
+``<data_dir>/uploads/<sha256>.net.xml`` (atomically: nothing half-made is ever visible there),
+with ``<sha256>.json`` beside it keeping the name it was uploaded under (GET /intersections/uploads).
 
 The multipart body is parsed with the standard library (python-multipart is not a dependency).
 """
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import asyncio
 import hashlib
+import json
 import os
 import re
 import tempfile
@@ -22,13 +24,17 @@ import xml.etree.ElementTree as ET
 from email import policy
 from email.parser import BytesParser
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, HTTPException, Request
+from fastapi import APIRouter, HTTPException, Query, Request
 
 from crossroads.api.deps import OptionsDep, SettingsDep
+from crossroads.evaluation.network_checks import program_json
+from crossroads.api.routes.intersections import geometry_with_program, paths_of, signal_links
+from crossroads.constants import RHO_BEZIER
 from crossroads.network.export import junction_geometry
 from crossroads.network.junction import JunctionError, read_junction
+from crossroads.network.resolve import open_junction
 
 router = APIRouter(prefix="/intersections", tags=["intersections"])
 
@@ -146,24 +152,75 @@ def _read_and_store(data: bytes, digest: str, filename: str, target_dir: Path) -
             junction = read_junction(tmp)
         except JunctionError as exc:
             raise _bad(str(exc).replace(str(tmp), filename)) from None
-        geometry = junction_geometry(junction)
+        geometry = {**junction_geometry(junction), "signal_links": signal_links(junction)}
         os.replace(tmp, final)
     finally:
         tmp.unlink(missing_ok=True)
+    _write_name(target_dir, digest, filename)
     return {"name": filename, "id": digest, "net": f"{UPLOADS}/{final.name}", "size_bytes": len(data),
-            "junction": junction.id, **geometry}
+            "junction": junction.id, **geometry, "program": program_json(final, junction.tl_id)}
+
+
+def _write_name(target_dir: Path, digest: str, filename: str) -> None:
+    """Remember the name the network was uploaded under (the first one), for the catalogue of
+    uploads; written atomically beside the network."""
+    meta = target_dir / f"{digest}.json"
+    if meta.is_file():
+        return
+    fd, tmp_name = tempfile.mkstemp(prefix=".upload-", suffix=".json", dir=target_dir)
+    with os.fdopen(fd, "w", encoding="utf-8") as f:
+        json.dump({"name": filename}, f)
+    os.replace(tmp_name, meta)
+
+
+def _uploaded_name(target_dir: Path, digest: str) -> str:
+    try:
+        name = json.loads((target_dir / f"{digest}.json").read_text(encoding="utf-8")).get("name")
+    except (OSError, ValueError, AttributeError):
+        name = None
+    return name if isinstance(name, str) and name else f"{digest[:12]}.net.xml"
+
+
+def _uploaded_path(digest: str, data_dir: Path) -> Path:
+    """The stored network of ``digest``; 422 for a malformed digest, 404 for an unknown one."""
+    if not _SHA256.match(digest):
+        raise HTTPException(status_code=422, detail=[{"loc": ["path", "digest"],
+                                                      "msg": "a sha256 in hex (64 characters)",
+                                                      "type": "value_error"}])
+    path = uploads_dir(data_dir) / f"{digest}.net.xml"
+    if not path.is_file():
+        raise HTTPException(status_code=404, detail=f"no uploaded network {digest}")
+    return path
+
+
+@router.get("/uploads")
+def list_uploads(settings: SettingsDep) -> list[dict[str, Any]]:
+    """The uploaded networks, oldest first: ``id`` (sha256), the ``name`` it was uploaded under,
+    and the ``net`` to use in a scenario's ``intersection``."""
+    directory = uploads_dir(settings.data_dir)
+    if not directory.is_dir():
+        return []
+    files = [p for p in directory.glob("*.net.xml") if _SHA256.match(p.name.removesuffix(".net.xml"))]
+    files.sort(key=lambda p: p.stat().st_mtime_ns)
+    return [{"id": (digest := p.name.removesuffix(".net.xml")), "name": _uploaded_name(directory, digest),
+             "net": f"{UPLOADS}/{p.name}", "size_bytes": p.stat().st_size} for p in files]
 
 
 @router.get("/uploads/{digest}")
 def uploaded_geometry(digest: str, settings: SettingsDep) -> dict[str, Any]:
     """The geometry of an uploaded network (by the sha256 POST /intersections/upload gave)."""
-    if not _SHA256.match(digest):
-        raise HTTPException(status_code=422, detail=[{"loc": ["path", "digest"],
-                                                      "msg": "a sha256 in hex (64 characters)",
-                                                      "type": "value_error"}])
-    path = uploads_dir(settings.data_dir) / f"{digest}.net.xml"
-    if not path.is_file():
-        raise HTTPException(status_code=404, detail=f"no uploaded network {digest}")
-    junction = read_junction(path)
-    return {"name": digest, "id": digest, "net": f"{UPLOADS}/{path.name}",
-            "size_bytes": path.stat().st_size, "junction": junction.id, **junction_geometry(junction)}
+    path = _uploaded_path(digest, settings.data_dir)
+    junction = open_junction(path)
+    return {"name": _uploaded_name(path.parent, digest), "id": digest, "net": f"{UPLOADS}/{path.name}",
+            "size_bytes": path.stat().st_size, "junction": junction.id, **geometry_with_program(junction)}
+
+
+@router.get("/uploads/{digest}/paths")
+def uploaded_paths(
+    digest: str, settings: SettingsDep,
+    task: Literal["left", "straight", "right"],
+    approach: Annotated[str | None, Query(description="incoming edge id; default: from the south")] = None,
+    rho: Annotated[float, Query(gt=0.0, lt=1.0, description="ρ of the Bezier construction")] = RHO_BEZIER,
+) -> list[dict[str, Any]]:
+    """The candidate paths of a task on an uploaded network."""
+    return paths_of(open_junction(_uploaded_path(digest, settings.data_dir)), task, approach, rho)

@@ -1,0 +1,127 @@
+"""What a scenario asks of its network, checked against the network before anything is stored.
+
+The scenario format leaves to the world what needs the built network: whether ``approach`` and
+``ego.entrance_lane`` exist, whether the task can be driven from there, whether ``lights.phase``
+is in the signal program. A batch would only find out in its workers, as one error per episode;
+the API (a 422 naming the field) and ``crossroads evaluate`` (before any batch starts) check them
+here instead. The junction is read
+through :func:`~crossroads.network.resolve.open_junction` and the signal program through a cache
+of its own, so a check after the first costs next to nothing.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+from crossroads.constants import EGO_LENGTH_M
+from crossroads.evaluation.scenario import ScenarioSpec, net_path
+from crossroads.network.junction import JunctionError
+from crossroads.network.model import Approach, Junction
+from crossroads.network.resolve import NetworkNotFoundError, open_junction
+from crossroads.planning import PlanningError, plan_candidates
+from crossroads.sim.signals import SignalError, TlProgram, read_program
+from crossroads.validation import SpecError
+
+Problems = list[tuple[str, str]]
+
+
+@lru_cache(maxsize=64)
+def _program_cached(net_file: Path, mtime_ns: int, tl_id: str) -> TlProgram:
+    return read_program(net_file, tl_id)
+
+
+def signal_program(net_file: str | Path, tl_id: str) -> TlProgram:
+    """A traffic light's program (cached while its network file is unchanged)."""
+    net = Path(net_file)
+    return _program_cached(net, net.stat().st_mtime_ns, tl_id)
+
+
+def program_json(net_file: str | Path, tl_id: str) -> dict[str, Any] | None:
+    """The signal program for the editor (phase index → duration and state); None if unreadable."""
+    try:
+        program = signal_program(net_file, tl_id)
+    except (SignalError, OSError):
+        return None
+    return {"tl_id": program.tl_id, "offset_s": program.offset_s,
+            "phases": [{"duration_s": p.duration_s, "state": p.state} for p in program.phases]}
+
+
+def _junction_of(spec: ScenarioSpec, base_dir: Path | None) -> tuple[Junction | None, Problems]:
+    if isinstance(spec.intersection, str):
+        ref: str | Path = spec.intersection
+        junction_id, field = None, "intersection"
+    else:
+        ref = net_path(spec, base_dir)  # type: ignore[assignment]
+        junction_id = spec.intersection.junction
+        field = "intersection.junction" if junction_id else "intersection.net"
+    try:
+        return open_junction(ref, junction_id), []
+    except (NetworkNotFoundError, JunctionError, SpecError, OSError) as exc:
+        return None, [(field, str(exc))]
+
+
+def _approach_of(spec: ScenarioSpec, junction: Junction) -> tuple[Approach | None, Problems]:
+    if spec.approach is None:
+        return junction.default_approach(), []
+    try:
+        return junction.approach(spec.approach), []
+    except KeyError:
+        known = ", ".join(a.id for a in junction.approaches)
+        return None, [("approach", f"junction {junction.id!r} has no approach {spec.approach!r}; "
+                                   f"its approaches: {known}")]
+
+
+def _ego_problems(spec: ScenarioSpec, junction: Junction, approach: Approach) -> Problems:
+    """The start lane exists on the approach, leads where the task goes, and is long enough."""
+    try:
+        candidates = plan_candidates(junction, spec.task, approach=approach, rho=spec.rho)
+    except PlanningError as exc:
+        return [("task", f"no {spec.task} path from approach {approach.id!r}: {exc}")]
+    lane_id = spec.ego.entrance_lane or candidates[0].entrance_lane
+    lanes = {lane.id: lane for lane in approach.entrance_lanes}
+    if lane_id not in lanes:
+        return [("ego.entrance_lane", f"{lane_id!r} is not an entrance lane of approach "
+                                      f"{approach.id!r}; its entrance lanes: {', '.join(lanes)}")]
+    turns = approach.turns_of(lane_id)
+    if spec.task not in turns:
+        able = [lane for lane in lanes if spec.task in approach.turns_of(lane)]
+        return [("ego.entrance_lane", f"lane {lane_id!r} does not lead {spec.task} (it leads "
+                                      f"{', '.join(sorted(turns)) or 'nowhere'}); lanes that do: "
+                                      f"{', '.join(able)}")]
+    # the ego's back must lie on the lane (the world would silently start it at the lane's start)
+    room = lanes[lane_id].length_m - EGO_LENGTH_M / 2.0
+    if spec.ego.start_distance_m > room:
+        return [("ego.start_distance_m", f"{spec.ego.start_distance_m:g} m does not fit on lane "
+                                         f"{lane_id!r} ({lanes[lane_id].length_m:.1f} m long): "
+                                         f"at most {room:.1f} m")]
+    return []
+
+
+def _light_problems(spec: ScenarioSpec, junction: Junction) -> Problems:
+    try:
+        program = signal_program(junction.net_file, junction.tl_id)
+    except SignalError as exc:
+        return [("intersection", str(exc))]
+    phase, n = spec.lights.phase, len(program.phases)
+    if phase >= n:
+        return [("lights.phase", f"the signal program of {junction.tl_id!r} has {n} phases: "
+                                 f"0 to {n - 1}")]
+    duration = program.phases[phase].duration_s
+    if spec.lights.elapsed_s >= duration:
+        return [("lights.elapsed_s", f"phase {phase} lasts {duration:g} s: the time already "
+                                     f"spent in it must be below that")]
+    return []
+
+
+def network_problems(spec: ScenarioSpec, base_dir: str | Path | None = None) -> Problems:
+    """Every field of ``spec`` its network contradicts, as ``(field, message)`` pairs; a
+    ``{net: ...}`` path is taken relative to ``base_dir`` (see ``evaluation.scenario.net_path``)."""
+    junction, problems = _junction_of(spec, None if base_dir is None else Path(base_dir))
+    if junction is None:
+        return problems
+    approach, problems = _approach_of(spec, junction)
+    if approach is not None:
+        problems = _ego_problems(spec, junction, approach)
+    return problems + _light_problems(spec, junction)

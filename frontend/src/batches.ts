@@ -1,0 +1,186 @@
+// Batches: run one (progress over Server-Sent Events, cancel), its results and episodes, the list
+// of batches and the side-by-side comparison.
+import { $, api, esc, Json, messageOf, pct, post, secs } from "./api";
+import { clearErrors, showErrors } from "./form";
+
+const FINISHED = ["done", "cancelled", "failed"];
+let following: number | null = null; // the batch whose progress the bar shows
+
+function progressLine(batchId: number, p: Json): string {
+  if (p.status === "queued") {
+    const place = p.queue_position ? ` (waiting for a free slot, ${p.queue_position === 1 ? "next" : `#${p.queue_position} in line`})` : "";
+    return `batch #${batchId} queued${place}: ${p.done}/${p.total} runs`;
+  }
+  return `batch #${batchId} ${p.status}: ${p.done}/${p.total} runs, ${p.passed} passed, ${p.errors} errors`;
+}
+
+function showCancel(batchId: number | null): void {
+  const button = $<HTMLButtonElement>("#cancel");
+  button.hidden = batchId == null;
+  button.disabled = false;
+  button.dataset.batch = batchId == null ? "" : String(batchId);
+}
+
+/** Start a batch of the saved scenario and follow it. */
+export async function runBatch(scenarioId: number, policy: string): Promise<void> {
+  clearErrors();
+  const button = $<HTMLButtonElement>("#run");
+  button.disabled = true;
+  try {
+    const b = await post("/api/batches", { scenario_id: scenarioId, policy, traces: "all" });
+    follow(b.id, () => (button.disabled = false));
+    void refreshBatches();
+  } catch (e) {
+    showErrors(e);
+    button.disabled = false;
+  }
+}
+
+/** Show a batch's progress until it ends, then its results. */
+export function follow(batchId: number, done: () => void): void {
+  const bar = $<HTMLProgressElement>("#progress");
+  const text = $("#progress-text");
+  following = batchId;
+  bar.hidden = false;
+  bar.value = 0;
+  text.textContent = `batch #${batchId}: starting…`;
+  showCancel(batchId);
+  const source = new EventSource(`/api/batches/${batchId}/events`);
+  source.addEventListener("progress", (ev) => {
+    const p = JSON.parse((ev as MessageEvent).data);
+    bar.value = p.fraction;
+    if ($("#cancel").dataset.state !== "cancelling" || FINISHED.includes(p.status)) text.textContent = progressLine(batchId, p);
+  });
+  source.addEventListener("end", async (ev) => {
+    source.close();
+    const e = JSON.parse((ev as MessageEvent).data);
+    bar.value = e.status === "done" ? 1 : bar.value;
+    text.textContent = `batch #${batchId} ${e.status}`;
+    text.dataset.status = e.status;
+    finish(batchId, done);
+    await showBatch(batchId);
+    await refreshBatches();
+  });
+  source.onerror = () => {
+    // The stream closes after `end`; any other error: fall back to reading the batch once.
+    if (source.readyState === EventSource.CLOSED) return;
+    source.close();
+    text.textContent = `batch #${batchId}: lost the progress stream`;
+    finish(batchId, done);
+    void showBatch(batchId);
+  };
+}
+
+function finish(batchId: number, done: () => void): void {
+  if (following === batchId) {
+    showCancel(null);
+    $("#cancel").dataset.state = "";
+  }
+  done();
+}
+
+/** Ask the API to cancel a batch; the progress stream then reports it cancelled. */
+export async function cancelBatch(batchId: number): Promise<void> {
+  const text = $("#progress-text");
+  const button = $<HTMLButtonElement>("#cancel");
+  if (following === batchId) {
+    button.disabled = true;
+    button.dataset.state = "cancelling";
+    text.textContent = `batch #${batchId}: cancelling…`;
+  }
+  try {
+    const r = await post(`/api/batches/${batchId}/cancel`);
+    if (following === batchId && r.status === "cancelled") text.textContent = `batch #${batchId} cancelled`;
+  } catch (e) {
+    if (following === batchId) {
+      button.disabled = false;
+      button.dataset.state = "";
+    }
+    text.textContent = `batch #${batchId}: cannot cancel: ${messageOf(e)}`;
+  }
+  await refreshBatches();
+}
+
+// --- results ---------------------------------------------------------------------------------------
+
+function summaryHtml(b: Json): string {
+  const s = b.summary;
+  if (!s) return "<p>No results yet.</p>";
+  const counts = Object.entries(s.outcome_counts as Record<string, number>)
+    .map(([k, v]) => `<tr><td>${esc(k)}</td><td>${v}</td></tr>`).join("");
+  const tt = s.travel_time_mean_s == null ? "–" : `${s.travel_time_mean_s.toFixed(2)} ± ${(s.travel_time_std_s ?? 0).toFixed(2)} s`;
+  return `
+    <p>Batch #${b.id}: <b>${esc(b.scenario)}</b> with policy <b>${esc(b.policy)}</b> — <span id="batch-status">${esc(b.status)}</span>
+      (${s.recorded}/${b.runs} recorded, ${s.errors} errors)${b.error ? ` <span class="error">${esc(b.error)}</span>` : ""}</p>
+    <dl class="figures">
+      <div><dt>Pass rate</dt><dd id="pass-rate">${pct(s.pass_rate)}</dd></div>
+      <div><dt>Wilson 95 %</dt><dd id="wilson">[${pct(s.wilson_low)}, ${pct(s.wilson_high)}]</dd></div>
+      <div><dt>Travel time (passed)</dt><dd id="travel-time">${tt}</dd></div>
+    </dl>
+    <table class="counts"><thead><tr><th>Outcome</th><th>Episodes</th></tr></thead><tbody>${counts}</tbody></table>`;
+}
+
+function episodeRow(e: Json): string {
+  return `
+    <tr class="${e.passed ? "passed" : "failed"}">
+      <td>${e.run_index}</td><td>${e.seed}</td><td>${esc(e.outcome)}</td><td>${secs(e.travel_time_s)}</td>
+      <td>${e.min_distance_m == null ? "–" : e.min_distance_m.toFixed(2) + " m"}</td>
+      <td title="${esc(e.error_message ?? "")}">${esc(e.detail)}</td>
+      <td>${e.has_trace
+        ? `<a class="playback" target="_blank" rel="noopener" href="/api/playback/${e.batch_id}/${e.run_index}">3D playback</a>`
+        : '<span class="hint">no trace kept</span>'}</td>
+    </tr>`;
+}
+
+export async function showBatch(batchId: number): Promise<void> {
+  const [b, episodes] = await Promise.all([api(`/api/batches/${batchId}`), api(`/api/batches/${batchId}/episodes`)]);
+  $("#summary").innerHTML = summaryHtml(b);
+  $("#episodes").innerHTML = episodes.length
+    ? `<table><thead><tr><th>Run</th><th>Seed</th><th>Outcome</th><th>Travel time</th><th>Min. distance</th><th>Detail</th><th></th></tr></thead><tbody>${(episodes as Json[]).map(episodeRow).join("")}</tbody></table>`
+    : '<p class="hint">No episodes recorded.</p>';
+}
+
+// --- the list and the comparison -----------------------------------------------------------------------
+
+function batchRow(b: Json): string {
+  const status = b.status === "queued" && b.queue_position ? `queued (#${b.queue_position})` : b.status;
+  const cancel = FINISHED.includes(b.status) ? "" : ` <button type="button" data-cancel="${b.id}">Cancel</button>`;
+  return `<tr data-id="${b.id}"><td>${b.id}</td><td>${esc(b.scenario)}</td><td>${esc(b.policy)}</td><td class="status">${esc(status)}</td>
+    <td>${b.progress.done}/${b.progress.total}</td><td><button type="button" data-batch="${b.id}">Show</button>${cancel}</td></tr>`;
+}
+
+function compareCell(full: Json[], sid: number, pol: string): string {
+  const b = full.find((x) => x.scenario_id === sid && x.policy === pol);
+  if (!b?.summary) return "<td>–</td>";
+  const s = b.summary;
+  return `<td><b>${pct(s.pass_rate)}</b> [${pct(s.wilson_low)}, ${pct(s.wilson_high)}]<br>
+    <span class="hint">${s.travel_time_mean_s == null ? "–" : `${s.travel_time_mean_s.toFixed(1)} ± ${(s.travel_time_std_s ?? 0).toFixed(1)} s`}
+    · n=${s.judged} · #${b.id}</span></td>`;
+}
+
+/** The compare table: the latest finished batch per (scenario, policy). */
+async function refreshCompare(list: Json[]): Promise<void> {
+  const latest = new Map<string, Json>();
+  for (const b of list) {
+    if (b.status !== "done") continue;
+    const key = `${b.scenario_id}\u0000${b.policy}`;
+    if (!latest.has(key)) latest.set(key, b);
+  }
+  const full = await Promise.all([...latest.values()].map((b) => api(`/api/batches/${b.id}`)));
+  if (!full.length) {
+    $("#compare").innerHTML = '<p class="hint">No finished batches yet.</p>';
+    return;
+  }
+  const scenarios = [...new Map(full.map((b) => [b.scenario_id, b.scenario])).entries()];
+  const policies = [...new Set(full.map((b) => b.policy as string))].sort();
+  $("#compare").innerHTML = `<table class="compare"><thead><tr><th>Scenario \\ policy</th>${policies.map((p) => `<th>${esc(p)}</th>`).join("")}</tr></thead>
+    <tbody>${scenarios.map(([sid, name]) => `<tr><th>${esc(name)} <span class="hint">#${sid}</span></th>${policies.map((p) => compareCell(full, sid, p)).join("")}</tr>`).join("")}</tbody></table>`;
+}
+
+export async function refreshBatches(): Promise<void> {
+  const list: Json[] = await api("/api/batches?limit=50");
+  $("#batches").innerHTML = list.length
+    ? `<table><thead><tr><th>#</th><th>Scenario</th><th>Policy</th><th>Status</th><th>Progress</th><th></th></tr></thead><tbody>${list.map(batchRow).join("")}</tbody></table>`
+    : '<p class="hint">No batches yet.</p>';
+  await refreshCompare(list);
+}

@@ -1,0 +1,65 @@
+"""Sampling rounds in the SUMO world: states lie near the path they are recorded with, the demand
+scale and the rule share act, and a round is a function of (seed, worker, round, weights)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from crossroads.rl.config import TrainConfig
+from crossroads.rl.sampler import EpisodeSampler, PathSet, WorkerSpec
+
+# left turns of the two-lane intersection: two candidates from the same entrance lane
+INTERSECTION = "b_two_lane"
+CONFIG = TrainConfig(intersections=(INTERSECTION,), tasks=("left",), workers=0, hidden_units=32,
+                     max_episode_steps=80, warmup_s=5.0, rule_rounds=0, rule_share=1.0)
+
+
+@pytest.fixture(scope="module")
+def left_paths() -> PathSet:
+    return PathSet.build((INTERSECTION,), ("left",))
+
+
+def _sampler(paths: PathSet, **changes: object) -> EpisodeSampler:
+    return EpisodeSampler(WorkerSpec(replace(CONFIG, **changes), paths.keys), worker_id=0)
+
+
+def test_rule_driven_states_lie_near_their_own_path(left_paths: PathSet) -> None:
+    """The rule driver follows the drawn path, so the recorded path index is the one driven (both
+    candidates start on the same lane: a driver keeping to the first would end metres off the second)."""
+    assert len(left_paths.candidates) == 2
+    sampler = _sampler(left_paths, max_episode_steps=120)
+    seen = set()
+    for round_index in range(6):
+        samples = sampler.round(round_index, None)
+        assert len(samples.ego) > 10
+        seen.update(int(p) for p in samples.path)
+        for ego, path in zip(samples.ego, samples.path):
+            lateral = left_paths.candidates[int(path)].project(float(ego[0]), float(ego[1])).lateral_m
+            assert abs(lateral) < 1.5, (round_index, int(path), lateral)
+    assert seen == {0, 1}
+
+
+def test_zero_demand_scale_gives_an_empty_scene(left_paths: PathSet) -> None:
+    rng = np.random.default_rng(0)
+    world_cfg, *_ = _sampler(left_paths, demand_scale=(0.0, 0.0)).episode_config(rng)
+    assert world_cfg.demand.vehicles_per_hour == 0.0 and world_cfg.demand.pedestrians_per_hour == 0.0
+    world_cfg, *_ = _sampler(left_paths, demand_scale=(2.0, 2.0)).episode_config(np.random.default_rng(0))
+    assert world_cfg.demand.vehicles_per_hour == pytest.approx(2 * 400.0)
+
+
+def test_a_round_is_repeatable(left_paths: PathSet) -> None:
+    a = _sampler(left_paths).round(3, None)
+    b = _sampler(left_paths).round(3, None)
+    np.testing.assert_array_equal(a.ego, b.ego)
+    np.testing.assert_array_equal(a.others, b.others)
+
+
+@pytest.mark.parametrize(("field", "value", "message"), [
+    ("rule_share", 1.5, "rule_share"), ("demand_scale", (1.0, 0.5), "demand_scale"),
+    ("demand_scale", (-1.0, 0.5), "demand_scale")])
+def test_bad_sampling_options_are_named(field: str, value: object, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        replace(CONFIG, **{field: value})
