@@ -190,3 +190,47 @@ def test_network_input_is_pose_invariant_and_backend_free() -> None:
     t = torch.tensor(st, requires_grad=True)
     S.network_input(t).sum().backward()
     assert torch.isfinite(t.grad).all()
+
+
+def _select_others_per_kind(ego, obs, kinds):
+    """select_others as first written: a stable sort within each kind."""
+    out = np.tile(S.pad_participant(ego), (S.N_OTHERS, 1))
+    d2 = (obs[:, 0] - ego[0]) ** 2 + (obs[:, 1] - ego[1]) ** 2
+    for kind in S.KINDS:
+        idx = np.flatnonzero(kinds == kind)
+        chosen = idx[np.argsort(d2[idx], kind="stable")][: S.SLOTS[kind]]
+        out[S.KIND_ROWS[kind].start: S.KIND_ROWS[kind].start + len(chosen)] = obs[chosen]
+    return out
+
+
+def test_select_others_is_a_stable_sort_within_each_kind() -> None:
+    rng = np.random.default_rng(7)
+    for n in (0, 1, 5, 40, 120):
+        ego = np.array([rng.uniform(-50, 50), rng.uniform(-50, 50), 3.0, 0.0, rng.uniform(-3, 3), 0, 0, 0])
+        obs = rng.uniform(-60, 60, (n, 6))
+        obs[: n // 3, :2] = np.round(obs[: n // 3, :2])  # equal distances: ties keep the input order
+        obs[n // 3: n // 2, :2] = obs[: n // 2 - n // 3, :2]
+        kinds = rng.choice(["vehicle", "cyclist", "pedestrian", "tram"], n)
+        got = S.select_others(ego, obs, kinds)
+        assert got.tobytes() == _select_others_per_kind(ego, obs, kinds).tobytes()
+
+
+def test_build_states_is_the_array_formula(candidates) -> None:
+    """build_states computes x_track of the few candidates on floats: the same numbers as the array
+    formulation on references()."""
+    rng = np.random.default_rng(8)
+    others = S.select_others(np.zeros(8), rng.uniform(-30, 30, (20, 6)), np.array(["vehicle"] * 20))
+    pts = np.concatenate([c.points for c in candidates])
+    for mode in ("pass", "stop"):
+        for k in rng.integers(0, len(pts), 60):
+            x, y = pts[k] + rng.normal(0, 2.0, 2)
+            e = np.array([x, y, rng.uniform(0, 12), 0.1, rng.uniform(-4, 4), 0.02, 0.01, 0.3])
+            ref = S.references(candidates, float(x), float(y), mode)
+            dx, dy = x - ref.x, y - ref.y
+            c, s = np.cos(ref.heading), np.sin(ref.heading)
+            track = np.column_stack([c * dx + s * dy, c * dy - s * dx, e[S.VX] - ref.v,
+                                     np.mod(e[S.PHI] - ref.heading + math.pi, 2.0 * math.pi) - math.pi])
+            expected = np.concatenate([np.broadcast_to(e, (len(candidates), 8)), track,
+                                       np.broadcast_to(others.reshape(1, -1), (len(candidates), 96))], axis=1)
+            for cands in (list(candidates), tuple(candidates)):  # a tuple is remembered by identity
+                assert S.build_states(e, others, cands, mode).tobytes() == expected.tobytes()

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from crossroads.constants import PERCEPTION_NOISE
-from crossroads.perception.noise import FIELDS, MIN_SIZE_M, add_noise
+from crossroads.perception.noise import FIELDS, KINDS, MIN_SIZE_M, add_noise, add_noise_unchecked
 
 
 def base(n: int) -> np.ndarray:
@@ -53,3 +53,22 @@ def test_errors() -> None:
         add_noise(np.zeros((2, 5)), np.array(["vehicle"] * 2), np.random.default_rng(0))
     with pytest.raises(ValueError):
         add_noise(base(2), np.array(["vehicle"]), np.random.default_rng(0))
+
+
+def test_unchecked_is_the_same_noise() -> None:
+    rng = np.random.default_rng(1)
+    obs = np.column_stack([rng.uniform(-50, 50, (300, 2)), rng.uniform(0, 0.3, 300), rng.uniform(-3.2, 3.2, 300),
+                           rng.uniform(0.05, 5, (300, 2))])
+    codes = rng.integers(0, 3, 300).astype(np.int8)
+    names = np.array(KINDS)[codes]
+    # the formula as first written: one expression, then the clamps and the wrap on copies
+    z = np.random.default_rng(9).standard_normal(obs.shape)
+    mean = np.array([[PERCEPTION_NOISE[k][f][0] for f in FIELDS] for k in KINDS])[codes]
+    std = np.array([[PERCEPTION_NOISE[k][f][1] for f in FIELDS] for k in KINDS])[codes]
+    expected = obs + mean + std * z
+    expected[:, 2] = np.maximum(expected[:, 2], 0.0)
+    expected[:, 3] = np.mod(expected[:, 3] + np.pi, 2.0 * np.pi) - np.pi
+    expected[:, 4:6] = np.maximum(expected[:, 4:6], MIN_SIZE_M)
+    for got in (add_noise(obs, names, np.random.default_rng(9)), add_noise(obs, codes, np.random.default_rng(9)),
+                add_noise_unchecked(obs, codes, np.random.default_rng(9))):
+        assert got.tobytes() == expected.tobytes()

@@ -85,3 +85,35 @@ def test_sector_polygons_match_coverage() -> None:
         boundary = np.array([shape.exterior.distance(Point(p)) < 0.5 for p in pts])
         np.testing.assert_array_equal(mask[~boundary], inside[~boundary])
     assert CAMERA_RANGE_M > LIDAR_RANGE_M > RADAR_RANGE_M
+
+
+def _covered_sensor_by_sensor(ex, ey, h, xs, ys, sensors):
+    """Every sensor's own sector test on the points within its reach, OR-ed (covered() without
+    its shortcuts: the skipped radars, the all-round sensor on the offsets, the shared distances)."""
+    mask = np.zeros(len(xs), dtype=bool)
+    distance = np.hypot(xs - ex, ys - ey)
+    for sensor in sensors:
+        rest = np.flatnonzero(~mask & (distance <= sensor.range_m + math.hypot(sensor.mount_x_m, sensor.mount_y_m)))
+        if len(rest):
+            mask[rest] = sensor.covers(ex, ey, h, xs[rest], ys[rest])
+    return mask
+
+
+def test_shortcuts_change_nothing() -> None:
+    rng = np.random.default_rng(2)
+    odd = (Sensor("far radar", 90.0, 60 * DEG, mount_x_m=2.0, yaw_rad=0.5),
+           Sensor("off-centre lidar", 65.0, 2 * math.pi, mount_x_m=1.0),
+           Sensor("short lidar", 30.0, 2 * math.pi))
+    for sensors in (DEFAULT_SENSORS, odd, odd[::-1], (DEFAULT_SENSORS[1],), list(DEFAULT_SENSORS)):
+        for _ in range(20):
+            ex, ey, h = rng.uniform(-50, 50), rng.uniform(-50, 50), rng.uniform(-4, 4)
+            # around the ranges' edges too, where rounding decides
+            r = np.concatenate([rng.uniform(0, 95, 300), rng.choice([30.0, 60.0, 65.0, 70.0, 80.0, 90.0], 100)
+                                + rng.normal(0, 1e-9, 100)])
+            a = rng.uniform(-math.pi, math.pi, len(r))
+            xs, ys = ex + r * np.cos(a), ey + r * np.sin(a)
+            expected = _covered_sensor_by_sensor(ex, ey, h, xs, ys, tuple(sensors))
+            np.testing.assert_array_equal(covered(ex, ey, h, xs, ys, sensors), expected)
+            dx, dy = xs - ex, ys - ey
+            np.testing.assert_array_equal(
+                covered(ex, ey, h, xs, ys, sensors, relative=(dx, dy, np.hypot(dx, dy))), expected)

@@ -155,3 +155,44 @@ def test_paper_demand_populates_the_snapshot(tmp_path: Path) -> None:
         snap = sim.snapshot()
     assert len(snap) >= 60
     assert np.isfinite(np.column_stack([snap.x, snap.y, snap.heading, snap.speed])).all()
+
+
+def test_static_columns_follow_arrivals_and_departures(net_and_routes) -> None:
+    """The snapshot's static columns (built from the session's table of participants, partly
+    reused between steps) always equal what SUMO says about each participant."""
+    net, r1, _ = net_and_routes
+    with SumoSession().start(net, [r1], seed=4) as sim:
+        sim.step(300)
+        changes, previous = 0, None
+        for _ in range(200):
+            sim.step()
+            s = sim.snapshot()
+            changes += previous is not None and previous != s.ids.tolist()
+            previous = s.ids.tolist()
+            assert s.ids.dtype == np.array(s.ids.tolist(), dtype=np.str_).dtype
+            persons = set(sim.person_ids)
+            for i, pid in enumerate(previous):
+                st = sim._read_static(pid, pid in persons)
+                assert (s.kind[i], s.length[i], s.width[i], s.route[i]) == (
+                    st.kind, st.length_m, st.width_m, st.route)
+                assert s.kind_code[i] == ("vehicle", "cyclist", "pedestrian").index(st.kind)
+            rows = s.observation_rows
+            np.testing.assert_array_equal(rows, np.column_stack([s.x, s.y, s.speed, s.heading, s.length, s.width]))
+        assert changes > 10  # participants came and went
+
+
+def test_static_table_grows_and_forgets() -> None:
+    from crossroads.sim.sumo import _Static, _StaticTable
+
+    table = _StaticTable()
+    for k in range(600):  # past its first capacity, twice
+        table.add(f"p{k}", _Static("cyclist" if k % 3 else "pedestrian", 1.0 + k, 0.5 + k, (f"e{k}",)))
+    ids = ("p599", "p0", "p300")
+    rows = table.rows(ids)
+    assert table.length[rows].tolist() == [600.0, 1.0, 301.0] and table.width[rows].tolist() == [599.5, 0.5, 300.5]
+    assert table.half_length[rows].tolist() == [300.0, 0.5, 150.5] and table.kind_code[rows].tolist() == [1, 2, 2]
+    table.forget("p0")
+    with pytest.raises(KeyError):
+        table.rows(ids)
+    table.add("p0", _Static("vehicle", 4.5, 1.8, ("a", "b")))  # back under a new row
+    assert table.kind_code[table.rows(("p0",))].tolist() == [0] and table.route["p0"] == ("a", "b")

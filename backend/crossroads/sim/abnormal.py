@@ -167,6 +167,8 @@ class AbnormalTraffic:
         cfg = self.config
         if not session.departed_last_step:
             return  # most steps: nobody new (the sets below cost more than the rest of the step here)
+        if not (cfg.overspeed_share > 0.0 or cfg.rounding_share > 0.0):
+            return  # nominal traffic: nobody can be chosen (no draw either), skip SUMO's look-ups
         persons = set(session.person_ids)
         for vid in session.departed_last_step:
             if vid in self._seen or vid in persons:

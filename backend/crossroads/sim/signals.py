@@ -188,9 +188,14 @@ def offset_for(program: TlProgram, t_s: float, phase_index: int, elapsed_s: floa
     return (t_s - program.phase_start_s(phase_index) - elapsed_s) % program.cycle_s
 
 
-def live_light(session: SumoSession, program: TlProgram, link_index: int) -> LightAt:
-    """The link's colour and its remaining time as SUMO has them now (the running truth)."""
-    state = session.tl_state(program.tl_id)
+def live_light(session: SumoSession, program: TlProgram, link_index: int, *,
+               state: str | None = None) -> LightAt:
+    """The link's colour and its remaining time as SUMO has them now (the running truth).
+
+    ``state``: SUMO's state string of the light, when the caller has read it already this step.
+    """
+    if state is None:
+        state = session.tl_state(program.tl_id)
     index = session.tl_phase(program.tl_id)
     remaining = session.tl_time_to_switch_s(program.tl_id)
     ph = PhaseAt(index, program.phases[index].duration_s - remaining, remaining)

@@ -18,25 +18,24 @@ import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
-import shapely
-from shapely.geometry import Polygon
 from shapely.ops import unary_union
 
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, SIM_STEP_S
 from crossroads.geometry import FloatArray, point_at, polyline_length
 from crossroads.network.junction import read_junction
 from crossroads.network.model import Approach, Junction, Lane
-from crossroads.perception.noise import add_noise
+from crossroads.perception.noise import add_noise_unchecked
 from crossroads.perception.sensors import DEFAULT_SENSORS, covered
 from crossroads.planning import CandidatePath, plan_candidates
 from crossroads.sim.abnormal import AbnormalTraffic
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.ego import ego_step
-from crossroads.sim.footprint import overlapping, rectangle_corners
+from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
 from crossroads.sim.other import route_curvature
+from crossroads.sim.region import Region
 from crossroads.sim.signals import Light, apply_start, live_light, read_program
 from crossroads.sim.sumo import KIND_CODE, Snapshot, SumoSession
 from crossroads.sim.traffic import write_routes
@@ -53,6 +52,8 @@ FRONT_LOOKAHEAD_M = 30.0  # [m] how far ahead the congestion check looks for a f
 FRONT_HEADING_TOLERANCE_RAD = math.pi / 4  # [rad] a front vehicle heads within this of the ego
 STOPPED_SPEED_MPS = 0.1  # [m/s] below this a vehicle counts as stopped
 ROUTE_MARGIN_S = 30.0  # [s] demand is drawn for warm-up + timeout + this margin
+_SAME_WAY_COS = math.cos(FRONT_HEADING_TOLERANCE_RAD)
+_PEDESTRIAN = KIND_CODE["pedestrian"]
 
 
 @dataclass(frozen=True)
@@ -92,6 +93,16 @@ class Observation:
         return self.distance_to_stop_line_m < 0.0
 
 
+class _Around(NamedTuple):
+    """Every participant of a snapshot relative to the ego's centre, computed once a step: the
+    sensors, the front-vehicle check and the collision judge all start from these (each used to
+    compute them itself; the same operations, so the same numbers)."""
+
+    dx: FloatArray  # [m] x − ego x
+    dy: FloatArray  # [m] y − ego y
+    distance: FloatArray  # [m] np.hypot(dx, dy)
+
+
 @dataclass(frozen=True)
 class Outcome:
     """How an episode ended."""
@@ -122,14 +133,12 @@ class World:
         self._stop_mid = self.approach.stop_line.mean(axis=0)
         self._forward = np.array([math.cos(self.approach.heading_rad),
                                   math.sin(self.approach.heading_rad)])
-        self._road = self.junction.drivable_area.buffer(OFF_ROAD_TOLERANCE_M)
-        shapely.prepare(self._road)
+        # the judge's point-in-polygon tests, with a memo of the grid cells away from the edges
+        self._road = Region(self.junction.drivable_area.buffer(OFF_ROAD_TOLERANCE_M))
         exit_edges = {self.junction.lanes[c.exit_lane].edge_id for c in self.candidates}
-        self._target_exit: Polygon = unary_union([
-            lane.polygon() for lane in self.junction.lanes.values() if lane.edge_id in exit_edges])
-        self._inside = self.junction.polygon
-        shapely.prepare(self._target_exit)
-        shapely.prepare(self._inside)
+        self._target_exit = Region(unary_union([
+            lane.polygon() for lane in self.junction.lanes.values() if lane.edge_id in exit_edges]))
+        self._inside = Region(self.junction.polygon)
         # lane centre lines by SUMO lane id, internal lanes through the junction included: the
         # turning radius R of f_other comes from the lane a participant is on and where on it
         self.lane_shapes: dict[str, FloatArray] = {
@@ -138,6 +147,9 @@ class World:
             for c in a.connections:
                 if c.via_lane and c.via_shape is not None and len(c.via_shape) >= 2:
                     self.lane_shapes[c.via_lane] = c.via_shape
+        self._stop_mid_xy: tuple[float, float] = tuple(self._stop_mid.tolist())
+        self._collision_sizes: FloatArray | None = None  # the snapshot lengths _collision_reach is for
+        self._collision_reach = np.zeros(0)
         self.session = session or SumoSession()
         self._work_dir = Path(tempfile.mkdtemp(prefix="crossroads-world-"))
         self.episode_seed: int | None = None
@@ -228,15 +240,22 @@ class World:
             raise RuntimeError("the episode has ended; call reset(seed) first")
         previous_distance = self._last_distance_m  # of the observation the action answered
         self.ego = ego_step(self.ego, np.asarray(action, dtype=np.float64))  # clips the action
-        x, y, vx, _, heading = self.ego[:5]
-        self.session.move_ego(EGO_ID, float(x), float(y), float(heading), float(vx))
+        x, y, vx, _, heading = self.ego[:5].tolist()
+        self.session.move_ego(EGO_ID, x, y, heading, vx)
         self.session.step()
         self._abnormal_ids = self.abnormal.update(self.session)
         self.time_s += SIM_STEP_S
         snap = self.session.snapshot()
-        obs = self._observe(snap)
-        self.outcome = self._judge(snap, obs, previous_distance)
+        around = self._around(snap)
+        obs = self._observe(snap, around)
+        self.outcome = self._judge(snap, obs, previous_distance, around)
         return obs, self.outcome
+
+    def _around(self, snap: Snapshot) -> _Around:
+        """The participants relative to the ego's centre now (see :class:`_Around`)."""
+        x, y = self.ego[:2].tolist()
+        dx, dy = snap.x - x, snap.y - y
+        return _Around(dx, dy, np.hypot(dx, dy))
 
     def _track_distance(self) -> float:
         """The ego's distance to the stop line now, kept for the next step's crossing check."""
@@ -244,29 +263,42 @@ class World:
         return self._last_distance_m
 
     def _distance_to_stop_line(self, ego: FloatArray) -> float:
-        front = ego[:2] + EGO_LENGTH_M / 2.0 * np.array([math.cos(ego[4]), math.sin(ego[4])])
-        return float(np.dot(self._stop_mid - front, self._forward))
+        # the front bumper on Python floats (the (2,)-vector arithmetic, element by element), but
+        # the dot product still numpy's: it may fuse the multiply-add, Python would not
+        x, y, heading = float(ego[0]), float(ego[1]), float(ego[4])
+        half = EGO_LENGTH_M / 2.0
+        mid_x, mid_y = self._stop_mid_xy
+        to_line = np.array([mid_x - (x + half * math.cos(heading)), mid_y - (y + half * math.sin(heading))])
+        return float(np.dot(to_line, self._forward))
 
     def _light(self) -> LightView:
-        at = live_light(self.session, self.program, self._link_index)
-        return LightView(at.light, at.remaining_s, self.session.tl_state(self.program.tl_id))
+        state = self.session.tl_state(self.program.tl_id)  # read once: the view keeps it for drawing
+        at = live_light(self.session, self.program, self._link_index, state=state)
+        return LightView(at.light, at.remaining_s, state)
 
-    def _front_vehicle_stopped_s(self, snap: Snapshot) -> float:
+    def _front_vehicle_stopped_s(self, snap: Snapshot, around: _Around) -> float:
         """How long the nearest vehicle ahead of the ego, in its corridor, has been standing
         (SPEC §7 congestion check; 0 when there is none or it moves)."""
         front_id = None
         if len(snap):
-            c, s = math.cos(self.ego[4]), math.sin(self.ego[4])
-            dx, dy = snap.x - self.ego[0], snap.y - self.ego[1]
-            ahead, lateral = dx * c + dy * s, -dx * s + dy * c
-            # a front vehicle drives the ego's way: oncoming traffic waiting to turn is no queue
-            same_way = np.cos(snap.heading - self.ego[4]) > math.cos(FRONT_HEADING_TOLERANCE_RAD)
-            front = (snap.kind_code != KIND_CODE["pedestrian"]) & (ahead > 0) & (ahead < FRONT_LOOKAHEAD_M) & (
-                np.abs(lateral) < FRONT_CORRIDOR_HALF_WIDTH_M) & same_way
-            if front.any():
-                row = np.flatnonzero(front)[np.argmin(ahead[front])]
-                if snap.speed[row] < STOPPED_SPEED_MPS:
-                    front_id = str(snap.ids[row])
+            heading = float(self.ego[4])
+            c, s = math.cos(heading), math.sin(heading)
+            dx, dy = around.dx, around.dy
+            ahead = dx * c + dy * s
+            lateral = dy * c - dx * s  # = −dx·s + dy·c exactly (negation and + are exact swaps)
+            # the corridor first (cheap, few pass), then the kind and heading of those few, one
+            # by one on floats (the same tests, fewer numpy calls than on arrays of a few)
+            rows = ((ahead > 0) & (ahead < FRONT_LOOKAHEAD_M)
+                    & (np.abs(lateral) < FRONT_CORRIDOR_HALF_WIDTH_M)).nonzero()[0]
+            row, nearest = -1, math.inf
+            for k in rows.tolist():
+                # a front vehicle drives the ego's way: oncoming traffic waiting to turn is no queue
+                if (snap.kind_code[k] != _PEDESTRIAN
+                        and math.cos(float(snap.heading[k]) - heading) > _SAME_WAY_COS
+                        and ahead[k] < nearest):  # strictly: the first of equals, as argmin
+                    row, nearest = k, ahead[k]
+            if row >= 0 and snap.speed[row] < STOPPED_SPEED_MPS:
+                front_id = str(snap.ids[row])
         if front_id is None:
             self._front_stopped = None
             return 0.0
@@ -274,47 +306,62 @@ class World:
             self._front_stopped = (front_id, self.time_s)
         return self.time_s - self._front_stopped[1]
 
-    def _perceive(self, snap: Snapshot) -> Perceived:
-        mask = covered(self.ego[0], self.ego[1], self.ego[4], snap.x, snap.y, DEFAULT_SENSORS)
-        rows = np.flatnonzero(mask)
+    def _perceive(self, snap: Snapshot, around: _Around) -> Perceived:
+        mask = covered(self.ego[0], self.ego[1], self.ego[4], snap.x, snap.y, DEFAULT_SENSORS,
+                       relative=(around.dx, around.dy, around.distance))
+        rows = mask.nonzero()[0]  # np.flatnonzero's result, without its Python-level wrappers
         truth = snap.observation_rows[rows]
         kinds = snap.kind[rows]
-        observed = (add_noise(truth, snap.kind_code[rows], self._noise_rng)
+        observed = (add_noise_unchecked(truth, snap.kind_code[rows], self._noise_rng)
                     if self.config.perception_noise else truth)
         return Perceived(rows, kinds, observed)
 
-    def _observe(self, snap: Snapshot) -> Observation:
+    def _observe(self, snap: Snapshot, around: _Around | None = None) -> Observation:
+        if around is None:
+            around = self._around(snap)
         return Observation(
             time_s=self.time_s,
             ego=self.ego.copy(),
             light=self._light(),
             distance_to_stop_line_m=self._track_distance(),
-            front_vehicle_stopped_s=self._front_vehicle_stopped_s(snap),
+            front_vehicle_stopped_s=self._front_vehicle_stopped_s(snap, around),
             participants=snap,
             abnormal_ids=self._abnormal_ids,
-            perceived=self._perceive(snap),
+            perceived=self._perceive(snap, around),
             candidates=self.candidates,
         )
 
-    def _judge(self, snap: Snapshot, obs: Observation, previous_distance: float) -> Outcome | None:
-        """The episode's outcome after this step, judged on the true footprints (None: go on)."""
+    def _collision(self, snap: Snapshot, around: _Around) -> int | None:
+        """Row of the first participant whose true footprint overlaps the ego's, if any."""
+        if snap.length is not self._collision_sizes:  # the sizes change only when participants do
+            self._collision_sizes = snap.length
+            self._collision_reach = reject_distance(EGO_LENGTH_M, EGO_WIDTH_M, reach(snap.length, snap.width))
+        near = (around.distance <= self._collision_reach).nonzero()[0]  # overlapping's cheap reject
+        if len(near) == 0:
+            return None
         x, y, _, _, heading = self.ego[:5]
-        hits = overlapping((x, y, heading, EGO_LENGTH_M, EGO_WIDTH_M),
-                           snap.x, snap.y, snap.heading, snap.length, snap.width)
-        if hits.any():
-            i = int(np.flatnonzero(hits)[0])
+        hits = overlapping((x, y, heading, EGO_LENGTH_M, EGO_WIDTH_M), snap.x[near], snap.y[near],
+                           snap.heading[near], snap.length[near], snap.width[near])
+        return int(near[hits.argmax()]) if hits.any() else None
+
+    def _judge(self, snap: Snapshot, obs: Observation, previous_distance: float,
+               around: _Around) -> Outcome | None:
+        """The episode's outcome after this step, judged on the true footprints (None: go on)."""
+        x, y, _, _, heading = self.ego[:5].tolist()
+        i = self._collision(snap, around)
+        if i is not None:
             return Outcome("collision", self.time_s, f"hit {snap.kind[i]} {snap.ids[i]}",
                            str(snap.kind[i]))
         if previous_distance >= 0.0 > obs.distance_to_stop_line_m:
             self._stop_line_crossed_s = self.time_s
             if obs.light.light == "red":
                 return Outcome("red_light", self.time_s, "crossed the stop line on red")
-        corners = rectangle_corners(x, y, heading, EGO_LENGTH_M, EGO_WIDTH_M)
-        if not shapely.contains_xy(self._road, corners[:, 0], corners[:, 1]).all():
+        xs, ys = corner_coordinates(x, y, heading, EGO_LENGTH_M, EGO_WIDTH_M)
+        if not self._road.contains_all(xs, ys):
             return Outcome("off_road", self.time_s, "left the drivable area")
         if (self._stop_line_crossed_s is not None
-                and shapely.contains_xy(self._target_exit, x, y)
-                and not shapely.contains_xy(self._inside, corners[:, 0], corners[:, 1]).any()):
+                and self._target_exit.contains(x, y)
+                and not self._inside.contains_any(xs, ys)):
             return Outcome("passed", self.time_s)
         if self.time_s >= self.config.timeout_s - 1e-9:
             return Outcome("timeout", self.time_s, f"still driving after {self.config.timeout_s:g} s")
