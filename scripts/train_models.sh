@@ -16,14 +16,22 @@
 # J_π 20.2, at 1e-3 15.3 after 100 steps (zero action: 25.3). So the shipped runs use 1e-3 → 1e-5 for
 # all three networks, gradients clipped to norm 10, and half the sampling rounds driven by the rule
 # controller (keeps states near the paths while the policy is poor). Set PAPER=1 for the paper's values.
+#
+# Training goes on across sessions by warm starts: WARM=1 starts both runs from the shipped
+# models/apg.pt and models/dpg.pt (copied to OUT/init/ first, since the export overwrites them);
+# the new cards carry the earlier runs in their `lineage` and count all iterations in
+# `iterations_total`. A warm start does not need the high learning rate: LR sets the policy, value
+# and adversary schedules (default 1e-3,1e-5), RULE_SHARE the share of rule-driven rounds (0.5).
+#   WARM=1 LR=3e-4,1e-5 RULE_SHARE=0.25 make models ITERATIONS=6000
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 ITERATIONS="${1:-${ITERATIONS:-8000}}"
 OUT="${2:-${OUT:-var/train}}"
 WORKERS="${WORKERS:-1}"
-SHORT_RUN=(--set policy_lr=1e-3,1e-5 --set value_lr=1e-3,1e-5 --set adversary_lr=1e-3,1e-5
-           --set max_grad_norm=10 --set rule_share=0.5)
+LR="${LR:-1e-3,1e-5}"
+SHORT_RUN=(--set "policy_lr=$LR" --set "value_lr=$LR" --set "adversary_lr=$LR"
+           --set max_grad_norm=10 --set "rule_share=${RULE_SHARE:-0.5}")
 [ "${PAPER:-0}" = 1 ] && SHORT_RUN=()
 THREADS="${THREADS:-1}"
 CROSSROADS=.venv/bin/crossroads
@@ -31,11 +39,18 @@ CROSSROADS=.venv/bin/crossroads
 mkdir -p "$OUT"
 
 train() {  # algo
-    local algo="$1" resume=()
-    [ -f "$OUT/$algo-seed0/checkpoints/last.pt" ] && resume=(--resume)
+    local algo="$1" resume=() warm=()
+    if [ -f "$OUT/$algo-seed0/checkpoints/last.pt" ]; then
+        resume=(--resume)
+    elif [ "${WARM:-0}" = 1 ]; then
+        mkdir -p "$OUT/init"
+        cp "models/$algo.pt" "$OUT/init/$algo.pt"
+        cp "models/$algo.card.json" "$OUT/init/$algo.card.json"
+        warm=(--set "init_from=$OUT/init/$algo.pt")
+    fi
     "$CROSSROADS" train --algo "$algo" --iterations "$ITERATIONS" --workers "$WORKERS" --out "$OUT" \
         --seed 0 "${resume[@]}" --set log_every=250 --set checkpoint_every=500 \
-        --set torch_threads="$THREADS" --set samples_per_iteration=64 --set progress=false "${SHORT_RUN[@]}" \
+        --set torch_threads="$THREADS" --set samples_per_iteration=64 --set progress=false "${SHORT_RUN[@]}" "${warm[@]}" \
         >> "$OUT/$algo.log" 2>&1
 }
 

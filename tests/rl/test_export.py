@@ -62,6 +62,23 @@ def test_warm_start_from_an_exported_model(tmp_path: Path, path_set, model) -> N
     second = train(tiny(tmp_path, iterations=3, run_name="second", init_from=out))
     assert (second / "metrics.csv").is_file()
 
+    # the second model's card counts the first run's iterations and wall time (across sessions)
+    first_card = json.loads(out.with_suffix(".card.json").read_text())
+    again = tmp_path / "again.pt"
+    assert CliRunner().invoke(app, ["export", str(second), "-o", str(again)]).exit_code == 0
+    card = json.loads(again.with_suffix(".card.json").read_text())
+    assert card["iterations_done"] == 3 and card["iterations_total"] == 6
+    assert card["fraction_of_paper"] == round(6 / 200_000, 4)
+    assert [h["iterations"] for h in card["lineage"]] == [3] and card["lineage"][0]["model"] == str(out)
+    assert abs(card["wall_time_total_s"] - (card["wall_time_s"] + first_card["wall_time_s"])) <= 0.11
+    # a third generation keeps the whole history, oldest first
+    third = train(tiny(tmp_path, iterations=2, run_name="third", init_from=again))
+    last = tmp_path / "third.pt"
+    CliRunner().invoke(app, ["export", str(third), "-o", str(last)])
+    card = json.loads(last.with_suffix(".card.json").read_text())
+    assert [h["model"] for h in card["lineage"]] == [str(out), str(again)]
+    assert card["iterations_total"] == 8
+
 
 def test_onnx_export_equals_torch(tmp_path: Path, path_set, model) -> None:
     from crossroads.rl.onnx_export import check_onnx, export_onnx

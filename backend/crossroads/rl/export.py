@@ -5,6 +5,11 @@ and ``--policy models/apg.pt`` read it) but only the networks and the config: no
 replay buffer, so it is a few MB instead of the tens of MB of a training checkpoint. The card
 (``models/apg.card.json``) says how the model was made: config, iterations, wall time, hardware,
 the last logged losses and TAR.
+
+A run warm-started from a shipped model (``init_from``) carries that model's history: the model file
+and its card hold ``lineage``, one entry per earlier run (its iterations, wall time, changed
+options), so ``iterations_total`` and ``fraction_of_paper`` count all the training behind the
+weights, across sessions.
 """
 
 from __future__ import annotations
@@ -47,8 +52,30 @@ def changed_from_defaults(config: dict[str, Any]) -> dict[str, dict[str, Any]]:
             if k in config and k not in skip and norm(config[k]) != norm(v)}
 
 
+def lineage(config: dict[str, Any]) -> list[dict[str, Any]]:
+    """The runs behind a warm start's initial weights, oldest first ([] for a fresh run): the init
+    model's own lineage, then the init model itself (from its file and, when beside it, its card)."""
+    init = config.get("init_from")
+    if not init:
+        return []
+    init_path = Path(init)
+    model = load_checkpoint(init_path)
+    card_path = init_path.with_suffix(".card.json")
+    card = json.loads(card_path.read_text()) if card_path.is_file() else {}
+    model_config = json.loads(model["config"]) if isinstance(model["config"], str) else model["config"]
+    entry = {
+        "model": str(init_path),
+        "algo": model_config.get("algo"),
+        "iterations": int(card.get("iterations_done", model["iteration"])),
+        "wall_time_s": card.get("wall_time_s"),
+        "changed_from_defaults": card.get("changed_from_defaults", changed_from_defaults(model_config)),
+    }
+    return [*model.get("lineage", []), entry]
+
+
 def model_card(run_dir: Path, checkpoint: dict[str, Any], source: Path,
-               notes: tuple[str, ...] = ()) -> dict[str, Any]:
+               notes: tuple[str, ...] = (), history: list[dict[str, Any]] | None = None
+               ) -> dict[str, Any]:
     """What a user should know about a model: how it was trained, how far it got against the
     paper's 200 000 iterations, what differs from the defaults, and the exporter's notes."""
     # the log rows up to the checkpoint's iteration: later rows describe weights not in the file
@@ -56,15 +83,21 @@ def model_card(run_dir: Path, checkpoint: dict[str, Any], source: Path,
     last = rows[-1] if rows else {}
     config = json.loads(checkpoint["config"]) if isinstance(checkpoint["config"], str) else checkpoint["config"]
     wall_s = sum(float(r.get("time/elapsed_s") or 0.0) for r in rows)
+    history = lineage(config) if history is None else history
+    done = int(checkpoint["iteration"])
+    total = done + sum(int(h["iterations"]) for h in history)
     return {
         "algo": config.get("algo"),
-        "iterations_done": int(checkpoint["iteration"]),
+        "iterations_done": done,
         "iterations_planned": config.get("iterations"),
+        "iterations_total": total,  # with the warm start's earlier runs (lineage)
         "paper_iterations": TOTAL_ITERATIONS,
-        "fraction_of_paper": round(int(checkpoint["iteration"]) / TOTAL_ITERATIONS, 4),
+        "fraction_of_paper": round(total / TOTAL_ITERATIONS, 4),
         "changed_from_defaults": changed_from_defaults(config),
         "notes": list(notes),
         "wall_time_s": round(wall_s, 1),
+        "wall_time_total_s": round(wall_s + sum(float(h.get("wall_time_s") or 0.0) for h in history), 1),
+        "lineage": history,
         "hardware": {
             "machine": platform.machine(),
             "cpus": os.cpu_count(),
@@ -87,10 +120,13 @@ def export_model(run: Path, out: Path, notes: tuple[str, ...] = ()) -> tuple[Pat
     checkpoint = load_checkpoint(run)
     run_dir = run if run.is_dir() else run.parent.parent
     learner = checkpoint["learner"]
+    config = json.loads(checkpoint["config"]) if isinstance(checkpoint["config"], str) else checkpoint["config"]
+    history = lineage(config)
     model = {
         "format": FORMAT,
         "iteration": checkpoint["iteration"],
         "config": checkpoint["config"],
+        "lineage": history,
         "learner": {k: learner[k] for k in NETWORK_KEYS if learner.get(k) is not None},
     }
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -98,5 +134,5 @@ def export_model(run: Path, out: Path, notes: tuple[str, ...] = ()) -> tuple[Pat
     torch.save(model, tmp)
     tmp.replace(out)
     card_path = out.with_suffix(".card.json")
-    card_path.write_text(json.dumps(model_card(run_dir, checkpoint, run, notes), indent=2) + "\n")
+    card_path.write_text(json.dumps(model_card(run_dir, checkpoint, run, notes, history), indent=2) + "\n")
     return out, card_path

@@ -1,0 +1,126 @@
+"""Why a trained policy fails: its collisions classified, and what its own model predicted before them.
+
+    .venv/bin/python benchmarks/failure_modes.py scenarios/nominal/c_three_lane-left.yaml \
+        --policy models/apg.pt [--runs 50]
+
+Runs the scenario's first N seeded episodes (the seeds of ``crossroads evaluate``) with a trained
+IDC policy and prints:
+
+* the outcomes, and each collision by where the other participant was (front / side / rear of the
+  ego, from its centre in the ego's frame) and whether it was standing (< 0.5 m/s), with the ego's
+  speed at impact;
+* for every collision, the state one second (``--look-back``) before impact put through the training model (the
+  differentiable IDC model, T = 25 steps, ξ ≡ 0): J_safe of the policy's own plan (its mean action
+  at every step) against J_safe of full braking (Δa = −JERK_MAX throughout).
+
+When braking would have kept J_safe low and the policy's plan did not, the model saw the danger and
+the policy did not act on it: a training problem, not a modelling one. When braking scores as badly
+as the plan, the model itself (its constant-velocity predictions, its circles) is the suspect.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from collections import Counter, deque
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+
+from crossroads.constants import JERK_MAX  # noqa: E402
+from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
+from crossroads.idc.decision import IdcController  # noqa: E402
+from crossroads.idc.state import path_tensors  # noqa: E402
+from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
+from crossroads.rl.model import IDCModel  # noqa: E402
+from crossroads.rl.sampler import others_and_curvature  # noqa: E402
+from crossroads.sim.world import World  # noqa: E402
+
+HORIZON = 25  # the paper's T
+STANDING_MPS = 0.5
+SIDE_BAND_M = 2.0  # |longitudinal offset| below this: the other is beside the ego
+
+
+def where(ego: np.ndarray, x: float, y: float) -> str:
+    """front / side / rear of the other's centre in the ego's frame."""
+    c, s = math.cos(ego[4]), math.sin(ego[4])
+    ahead = c * (x - ego[0]) + s * (y - ego[1])
+    return "front" if ahead > SIDE_BAND_M else ("rear" if ahead < -SIDE_BAND_M else "side")
+
+
+def model_j_safe(model: IDCModel, controller: IdcController, sample: Samples) -> tuple[float, float]:
+    """(J_safe of the policy's plan, J_safe of full braking) from one state."""
+    batch = to_batch(sample)
+    brake = torch.tensor([[0.0, -JERK_MAX]], dtype=torch.float32)
+    with torch.no_grad():
+        plan = model.rollout(batch, lambda s, _: controller.policy.mean_action(s), None, HORIZON)
+        stop = model.rollout(batch, lambda s, _: brake.expand(s.shape[0], 2), None, HORIZON)
+    return float(plan.j_safe[0]), float(stop.j_safe[0])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scenario", type=Path)
+    parser.add_argument("--policy", required=True, help="a trained model (.pt)")
+    parser.add_argument("--runs", type=int, default=50)
+    parser.add_argument("--look-back", type=float, default=1.0, help="[s] before impact (≤ 5)")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    look_back_steps = max(1, min(50, round(args.look_back / 0.1)))
+
+    spec = load_scenario(args.scenario)
+    controller = IdcController.from_checkpoint(args.policy)
+    outcomes: Counter[str] = Counter()
+    kinds: Counter[str] = Counter()
+    impact_speeds: list[float] = []
+    plan_safe: list[float] = []
+    brake_safe: list[float] = []
+    with World(to_world_config(spec, args.scenario.parent)) as world:
+        model = IDCModel(path_tensors(world.candidates, dtype=torch.float32))
+        for seed in run_seeds(spec, args.runs):
+            obs = world.reset(seed)
+            controller.reset(world.candidates)
+            recent: deque[Samples] = deque(maxlen=look_back_steps + 1)
+            outcome = None
+            while outcome is None:
+                decision = controller.decide(obs)
+                others, kappa = others_and_curvature(world, obs)
+                recent.append(Samples(obs.ego[None].astype(np.float32), others[None].astype(np.float32),
+                                      kappa[None].astype(np.float32), np.array([decision.path_index]),
+                                      np.array([decision.speed_mode == "stop"])))
+                obs, outcome = world.step(decision.action)
+            outcomes[outcome.kind] += 1
+            if outcome.kind != "collision":
+                continue
+            snap = obs.participants
+            row = list(snap.ids).index(outcome.detail.split()[-1])
+            standing = "standing" if snap.speed[row] < STANDING_MPS else "moving"
+            kinds[f"{where(obs.ego, snap.x[row], snap.y[row])}, {standing} {snap.kind[row]}"] += 1
+            impact_speeds.append(float(obs.ego[2]))
+            plan, brake = model_j_safe(model, controller, recent[0])
+            plan_safe.append(plan)
+            brake_safe.append(brake)
+
+    print(f"policy {args.policy} on {args.scenario} ({args.runs} seeded runs)")
+    print("outcomes: " + ", ".join(f"{k} {v}" for k, v in outcomes.most_common()))
+    if not impact_speeds:
+        return
+    print(f"collisions ({len(impact_speeds)}), by the other participant's place and motion:")
+    for kind, n in kinds.most_common():
+        print(f"  {kind:<32}{n:>4}")
+    speeds = np.asarray(impact_speeds)
+    print(f"ego speed at impact [m/s]: median {np.median(speeds):.1f}, "
+          f"25-75 % {np.percentile(speeds, 25):.1f}-{np.percentile(speeds, 75):.1f}")
+    plan_a, brake_a = np.asarray(plan_safe), np.asarray(brake_safe)
+    print(f"{look_back_steps / 10:g} s before impact, the model's J_safe over {HORIZON} steps: policy's plan median "
+          f"{np.median(plan_a):.1f}, full braking median {np.median(brake_a):.1f}; braking predicted "
+          f"safer in {int((brake_a < plan_a).sum())} of {len(plan_a)} "
+          f"(J_safe < 1 with braking in {int((brake_a < 1.0).sum())})")
+
+
+if __name__ == "__main__":
+    main()
