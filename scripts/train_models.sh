@@ -18,10 +18,11 @@
 # controller (keeps states near the paths while the policy is poor). Set PAPER=1 for the paper's values.
 #
 # Training goes on across sessions by warm starts: WARM=1 starts both runs from the shipped
-# models/apg.pt and models/dpg.pt (copied to OUT/init/ first, since the export overwrites them);
-# the new cards carry the earlier runs in their `lineage` and count all iterations in
-# `iterations_total`. A warm start does not need the high learning rate: LR sets the policy, value
-# and adversary schedules (default 1e-3,1e-5), RULE_SHARE the share of rule-driven rounds (0.5).
+# models/apg.pt and models/dpg.pt (INIT_DIR=DIR: from DIR/apg.pt, DIR/dpg.pt), copied to OUT/init/
+# first since the export overwrites them; the new cards carry the earlier runs in their `lineage`
+# and count all iterations in `iterations_total`. A warm start does not need the high learning
+# rate: LR sets the policy, value and adversary schedules (default 1e-3,1e-5), RULE_SHARE the share
+# of rule-driven rounds (0.5).
 #   WARM=1 LR=3e-4,1e-5 RULE_SHARE=0.25 make models ITERATIONS=6000
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -44,8 +45,8 @@ train() {  # algo
         resume=(--resume)
     elif [ "${WARM:-0}" = 1 ]; then
         mkdir -p "$OUT/init"
-        cp "models/$algo.pt" "$OUT/init/$algo.pt"
-        cp "models/$algo.card.json" "$OUT/init/$algo.card.json"
+        cp "${INIT_DIR:-models}/$algo.pt" "$OUT/init/$algo.pt"
+        cp "${INIT_DIR:-models}/$algo.card.json" "$OUT/init/$algo.card.json"
         warm=(--set "init_from=$OUT/init/$algo.pt")
     fi
     "$CROSSROADS" train --algo "$algo" --iterations "$ITERATIONS" --workers "$WORKERS" --out "$OUT" \

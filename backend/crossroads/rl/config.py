@@ -110,6 +110,11 @@ class TrainConfig:
     """(choice) Each sampling episode's traffic (SPEC §2 densities) is scaled by a factor drawn
     uniformly in this range, so the policy also sees empty and busier scenes (an empty scene makes
     every slot of x_other a pad, which nominal traffic never shows). (1, 1): always SPEC §2."""
+    danger_share: float = 0.5
+    """(choice) Share of every batch drawn from the buffer's dangerous states (J_safe of the
+    policy's plan above ``danger_threshold``); 0 = the paper's uniform draws (rl.buffer)."""
+    danger_threshold: float = 1.0
+    """(choice) J_safe above which a state counts as dangerous for ``danger_share``."""
     explore_std: float = 0.1
     """(choice) Exploration noise of the sampling policy: Gaussian, this fraction of each action's
     half range (Δδ: 0.04 rad/s, Δa: 0.45 m/s³), clipped to the action ranges."""
@@ -164,6 +169,10 @@ class TrainConfig:
             raise ValueError(f"workers: must be ≥ 0, got {self.workers}")
         if self.samples_per_iteration <= 0:
             raise ValueError("samples_per_iteration: must be > 0")
+        if not 0.0 <= self.danger_share <= 1.0:
+            raise ValueError(f"danger_share: must lie in [0, 1], got {self.danger_share}")
+        if not self.danger_threshold >= 0.0:
+            raise ValueError(f"danger_threshold: must be ≥ 0, got {self.danger_threshold}")
         if not 0.0 <= self.rule_share <= 1.0:
             raise ValueError(f"rule_share: must lie in [0, 1], got {self.rule_share}")
         low, high = self.demand_scale

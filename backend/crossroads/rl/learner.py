@@ -17,9 +17,10 @@ network being stepped, so a step can only move its own network.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 import torch
 from torch import Tensor, nn
 
@@ -37,6 +38,8 @@ class Losses:
     j_track: float
     j_safe: float
     j_pi: float
+    j_safe_per_state: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32), repr=False)
+    """J_safe of each state of the batch (the buffer's danger scores, see ``ReplayBuffer``)."""
 
 
 class Learner:
@@ -116,8 +119,15 @@ class Learner:
                 for sched in (self.value_sched, self.policy_sched, self.adversary_sched):
                     if sched is not None:
                         sched.step()
-        return Losses(float(j_v.detach()), float(out.j_track.detach().mean()), float(out.j_safe.detach().mean()),
-                      float(j_pi.detach()))
+        j_safe = out.j_safe.detach()
+        return Losses(float(j_v.detach()), float(out.j_track.detach().mean()), float(j_safe.mean()),
+                      float(j_pi.detach()), j_safe.cpu().numpy().astype(np.float32))
+
+    def danger(self, batch: StateBatch) -> np.ndarray:
+        """J_safe of the current policy's plan (means, no gradient) from each state of ``batch``:
+        how the buffer scores new states before they are drawn."""
+        with torch.no_grad():
+            return self.rollout(batch, sample=False).j_safe.cpu().numpy().astype(np.float32)
 
     # --- state ---------------------------------------------------------------------------------------
 

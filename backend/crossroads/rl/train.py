@@ -5,8 +5,10 @@ Per iteration k (0-based; "iteration" in logs and checkpoints counts iterations 
 * Sampling: rounds of worker episodes (``rl.sampler``) fill the ring buffer so that, before
   iteration k, at least ``learning_starts + samples_per_iteration · k`` states have entered it.
   One round is always in flight; it was issued with the policy weights of its issue time.
-* Optimising (``rl.learner``): a batch of ``batch_size`` states, the value step, the policy step and,
-  when k % m == 0 (APG), the adversary step.
+* Optimising (``rl.learner``): a batch of ``batch_size`` states (a ``danger_share`` of them among
+  the states whose last J_safe exceeded ``danger_threshold``, see ``rl.buffer``), the value step,
+  the policy step and, when k % m == 0 (APG), the adversary step; the batch's J_safe rescore its
+  states. New states are scored by the current policy's plan as they enter the buffer.
 * Every ``log_every`` iterations (and at the end): a CSV/TensorBoard row with the window's mean
   J_v, J_track, J_safe, J_π, TAR of the current policy (``rl.evaluate``) and iterations/s.
 * Every ``checkpoint_every`` iterations (and at the end): a checkpoint (``rl.checkpoint``);
@@ -28,7 +30,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from crossroads.rl.buffer import ReplayBuffer
+from crossroads.rl.buffer import ReplayBuffer, to_batch
 from crossroads.rl.checkpoint import load_checkpoint, rng_states, save_checkpoint, set_rng_states
 from crossroads.rl.config import TrainConfig, save_config
 from crossroads.rl.evaluate import evaluate_tar
@@ -111,10 +113,14 @@ def train(config: TrainConfig, *, resume: bool = False) -> Path:
         for k in range(start, config.iterations):
             need = config.learning_starts + config.samples_per_iteration * k
             while buffer.added < need:
-                buffer.add(sampler.collect())
+                fresh = sampler.collect()
+                scores = learner.danger(to_batch(fresh, device=device)) if config.danger_share > 0 else None
+                buffer.add(fresh, scores)
                 issue()
-            batch = buffer.sample(config.batch_size, device)
-            losses = learner.update(batch, k)
+            drawn = buffer.draw(config.batch_size, config.danger_share, config.danger_threshold)
+            losses = learner.update(buffer.batch(drawn, device), k)
+            if config.danger_share > 0:
+                buffer.rescore(drawn, losses.j_safe_per_state)
             window.add(losses)
             done = k + 1
             progress.update(1, f"J_pi {losses.j_pi:.3g}")
