@@ -63,3 +63,44 @@ def test_a_round_is_repeatable(left_paths: PathSet) -> None:
 def test_bad_sampling_options_are_named(field: str, value: object, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         replace(CONFIG, **{field: value})
+
+
+ORPHAN_SCRIPT = """
+import sys, time
+from crossroads.rl.config import TrainConfig
+from crossroads.rl.sampler import PathSet, ProcessSampler, WorkerSpec
+config = TrainConfig(intersections=("a_single_lane",), tasks=("left",), workers=1)
+sampler = ProcessSampler(WorkerSpec(config, PathSet.build(config.intersections, config.tasks).keys), 1)
+print(sampler._procs[0].pid, flush=True)
+time.sleep(120)
+"""
+
+
+def test_workers_of_a_killed_learner_exit() -> None:
+    """A learner killed by a signal cannot tell its workers to stop; they notice and leave."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    learner = subprocess.Popen([sys.executable, "-c", ORPHAN_SCRIPT], stdout=subprocess.PIPE, text=True)
+    try:
+        worker = int(learner.stdout.readline())  # type: ignore[union-attr]
+        os.kill(learner.pid, signal.SIGKILL)
+        learner.wait()
+        deadline = time.monotonic() + 60.0  # the worker may still be importing torch and SUMO
+        while time.monotonic() < deadline:
+            try:
+                os.kill(worker, 0)
+            except ProcessLookupError:
+                return
+            with open(f"/proc/{worker}/stat") as f:  # a zombie has exited: gone for our purpose
+                if f.read().split(")")[-1].split()[0] == "Z":
+                    return
+            time.sleep(0.5)
+        os.kill(worker, signal.SIGKILL)
+        raise AssertionError("the sampling worker outlived its learner by 60 s")
+    finally:
+        if learner.poll() is None:
+            learner.kill()

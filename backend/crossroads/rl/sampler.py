@@ -34,6 +34,8 @@ first, outputs concatenated in worker order).
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
+import queue
 import traceback
 from collections import deque
 from dataclasses import dataclass, replace
@@ -276,14 +278,25 @@ class InlineSampler:
         self._queue.clear()
 
 
-def _worker_main(spec: WorkerSpec, worker_id: int, inbox: Any, outbox: Any) -> None:
-    """A sampling process: answer each (round, weights) with (round, Samples) or ("error", text)."""
+PARENT_CHECK_S = 2.0  # [s] how often an idle worker checks that its learner still lives
+
+
+def _worker_main(spec: WorkerSpec, worker_id: int, inbox: Any, outbox: Any, parent: int) -> None:
+    """A sampling process: answer each (round, weights) with (round, Samples) or ("error", text).
+    ``parent``: the learner's pid (passed, not read here: the learner may die before this starts)."""
     import torch
 
     torch.set_num_threads(1)
     sampler = EpisodeSampler(spec, worker_id)
     while True:
-        msg = inbox.get()
+        try:
+            msg = inbox.get(timeout=PARENT_CHECK_S)
+        except queue.Empty:
+            # a learner killed by a signal never sends the None below: without this check its
+            # workers would wait (and hold their memory) until the machine restarts
+            if os.getppid() != parent:
+                return
+            continue
         if msg is None:
             return
         r, weights = msg
@@ -301,7 +314,8 @@ class ProcessSampler:
         self.workers = workers
         self._inboxes = [ctx.Queue() for _ in range(workers)]
         self._outboxes = [ctx.Queue() for _ in range(workers)]
-        self._procs = [ctx.Process(target=_worker_main, args=(spec, w, self._inboxes[w], self._outboxes[w]),
+        learner = os.getpid()
+        self._procs = [ctx.Process(target=_worker_main, args=(spec, w, self._inboxes[w], self._outboxes[w], learner),
                                    daemon=True, name=f"crossroads-sampler-{w}") for w in range(workers)]
         for p in self._procs:
             p.start()
