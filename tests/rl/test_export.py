@@ -78,6 +78,12 @@ def test_warm_start_from_an_exported_model(tmp_path: Path, path_set, model) -> N
     card = json.loads(last.with_suffix(".card.json").read_text())
     assert [h["model"] for h in card["lineage"]] == [str(out), str(again)]
     assert card["iterations_total"] == 8
+    # the warm start's file gone by export time: the export still works and says so
+    again.unlink()
+    assert CliRunner().invoke(app, ["export", str(third), "-o", str(last)]).exit_code == 0
+    card = json.loads(last.with_suffix(".card.json").read_text())
+    assert card["lineage"] == [{"model": str(again), "algo": None, "iterations": 0, "wall_time_s": None,
+                                "changed_from_defaults": {}, "missing": True}]
 
 
 def test_onnx_export_equals_torch(tmp_path: Path, path_set, model) -> None:

@@ -59,6 +59,9 @@ def lineage(config: dict[str, Any]) -> list[dict[str, Any]]:
     if not init:
         return []
     init_path = Path(init)
+    if not init_path.is_file():  # moved or deleted since the run started: say so, count nothing
+        return [{"model": str(init_path), "algo": None, "iterations": 0, "wall_time_s": None,
+                 "changed_from_defaults": {}, "missing": True}]
     model = load_checkpoint(init_path)
     card_path = init_path.with_suffix(".card.json")
     card = json.loads(card_path.read_text()) if card_path.is_file() else {}

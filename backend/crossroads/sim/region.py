@@ -45,25 +45,24 @@ class Region:
 
     def contains_all(self, xs: Sequence[float], ys: Sequence[float]) -> bool:
         """``shapely.contains_xy(geometry, xs, ys).all()``."""
-        unsure = []
-        for x, y in zip(xs, ys):
-            state = self._state(x, y)
-            if state == OUTSIDE:
-                return False
-            if state == BOUNDARY:
-                unsure.append((x, y))
-        return all(shapely.contains_xy(self.geometry, x, y) for x, y in unsure)
+        return not self._some(xs, ys, contained=False)
 
     def contains_any(self, xs: Sequence[float], ys: Sequence[float]) -> bool:
         """``shapely.contains_xy(geometry, xs, ys).any()``."""
+        return self._some(xs, ys, contained=True)
+
+    def _some(self, xs: Sequence[float], ys: Sequence[float], contained: bool) -> bool:
+        """Whether some point's ``contains_xy`` is ``contained``: the cells answer first (a cell
+        that settles it ends the search), GEOS only for the points in boundary cells."""
+        settles = INSIDE if contained else OUTSIDE
         unsure = []
         for x, y in zip(xs, ys):
             state = self._state(x, y)
-            if state == INSIDE:
+            if state == settles:
                 return True
             if state == BOUNDARY:
                 unsure.append((x, y))
-        return any(shapely.contains_xy(self.geometry, x, y) for x, y in unsure)
+        return any(bool(shapely.contains_xy(self.geometry, x, y)) == contained for x, y in unsure)
 
     def _state(self, x: float, y: float) -> int:
         """INSIDE, OUTSIDE or BOUNDARY: what the cell of (x, y) says about it."""
