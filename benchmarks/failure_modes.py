@@ -37,7 +37,7 @@ from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.model import IDCModel  # noqa: E402
-from crossroads.rl.sampler import others_and_curvature  # noqa: E402
+from crossroads.rl.sampler import observation_sample  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 
 HORIZON = 25  # the paper's T
@@ -88,10 +88,8 @@ def main() -> None:
             outcome = None
             while outcome is None:
                 decision = controller.decide(obs)
-                others, kappa = others_and_curvature(world, obs)
-                recent.append(Samples(obs.ego[None].astype(np.float32), others[None].astype(np.float32),
-                                      kappa[None].astype(np.float32), np.array([decision.path_index]),
-                                      np.array([decision.speed_mode == "stop"])))
+                recent.append(observation_sample(world, obs, int(decision.path_index),
+                                                 decision.speed_mode == "stop"))
                 obs, outcome = world.step(decision.action)
             outcomes[outcome.kind] += 1
             if outcome.kind != "collision":

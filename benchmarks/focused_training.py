@@ -26,7 +26,6 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from crossroads.evaluation.scenario import ScenarioSpec, load_scenario, run_seeds, to_world_config  # noqa: E402
@@ -35,7 +34,7 @@ from crossroads.rl.buffer import ReplayBuffer, Samples, StateBatch, to_batch  # 
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.learner import Learner  # noqa: E402
 from crossroads.rl.model import IDCModel  # noqa: E402
-from crossroads.rl.sampler import PathSet, others_and_curvature  # noqa: E402
+from crossroads.rl.sampler import PathSet, observation_sample  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 
 BATCH = 256
@@ -56,11 +55,8 @@ def drive(spec: ScenarioSpec, base_dir: Path, controller: IdcController, seeds: 
             outcome = None
             while outcome is None:
                 decision = controller.decide(obs)
-                others, kappa = others_and_curvature(world, obs)
                 key = path_keys[(name, spec.task, int(decision.path_index))]
-                rows.append(Samples(obs.ego[None].astype(np.float32), others[None].astype(np.float32),
-                                    kappa[None].astype(np.float32), np.array([key]),
-                                    np.array([decision.speed_mode == "stop"])))
+                rows.append(observation_sample(world, obs, key, decision.speed_mode == "stop"))
                 obs, outcome = world.step(decision.action)
             outcomes[outcome.kind] += 1
             every += rows

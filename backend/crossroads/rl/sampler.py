@@ -115,6 +115,18 @@ def others_and_curvature(world: World, obs: Observation) -> tuple[np.ndarray, np
     return others, kappa
 
 
+def as_sample(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, path_key: int, stop: bool) -> Samples:
+    """One state as a one-row :class:`Samples` (what the buffer stores): the ego, the 16 others and
+    their curvatures (``others_and_curvature``), the path's index in the caller's path tensor, the mode."""
+    return Samples(ego[None].astype(np.float32), others[None].astype(np.float32), kappa[None].astype(np.float32),
+                   np.array([path_key], np.int64), np.array([stop]))
+
+
+def observation_sample(world: World, obs: Observation, path_key: int, stop: bool) -> Samples:
+    """:func:`as_sample` of an observation of ``world``."""
+    return as_sample(obs.ego, *others_and_curvature(world, obs), path_key, stop)
+
+
 def scaled_demand(factor: float) -> TrafficDemand:
     """SPEC §2 traffic with every density multiplied by ``factor``."""
     nominal = TrafficDemand()
@@ -213,7 +225,7 @@ class EpisodeSampler:
             world = World(replace(world_cfg, ego_start=replace(world_cfg.ego_start, entrance_lane=cand_lane)))
         path = world.candidates[j]
         key = self.index[(name, task, j)]
-        rows: list[tuple[np.ndarray, np.ndarray, np.ndarray, bool]] = []
+        rows: list[Samples] = []
         try:
             obs = world.reset(int(rng.integers(2**31 - 1)))
             rule = None
@@ -226,7 +238,7 @@ class EpisodeSampler:
             for _ in range(cfg.max_episode_steps):
                 others, kappa = others_and_curvature(world, obs)
                 mode = speed_mode(obs)
-                rows.append((obs.ego.copy(), others, kappa, mode == "stop"))
+                rows.append(as_sample(obs.ego, others, kappa, key, mode == "stop"))
                 if rule is not None:
                     action = rule.decide(obs).action
                 else:
@@ -239,11 +251,7 @@ class EpisodeSampler:
                     break
         finally:
             world.close()
-        n = len(rows)
-        return Samples(np.array([r[0] for r in rows], np.float32).reshape(n, 8),
-                       np.array([r[1] for r in rows], np.float32).reshape(n, 16, 6),
-                       np.array([r[2] for r in rows], np.float32).reshape(n, 16),
-                       np.full(n, key, np.int64), np.array([r[3] for r in rows], bool).reshape(n))
+        return Samples.concat(rows)
 
 
 # --- executors -------------------------------------------------------------------------------------
