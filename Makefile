@@ -2,7 +2,8 @@
 #   make serve [ARGS="--port 9000 --db postgresql://..."]   the studio on http://127.0.0.1:8000
 #   make test  [PYTEST_ARGS="-k junction"]                   the whole test suite
 #   make models [ITERATIONS=8000]                            train and export models/apg.pt, models/dpg.pt
-.PHONY: serve test setup bench models
+#   make measure                                             measure them (docs/measurements/)
+.PHONY: serve test setup bench models measure
 
 serve:
 	@bash scripts/setup.sh
@@ -19,3 +20,7 @@ setup:
 models:
 	@bash scripts/setup.sh
 	bash scripts/train_models.sh $(ITERATIONS)
+
+measure:
+	@bash scripts/setup.sh
+	bash scripts/measure_models.sh

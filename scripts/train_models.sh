@@ -24,6 +24,9 @@
 # rate: LR sets the policy, value and adversary schedules (default 1e-3,1e-5), RULE_SHARE the share
 # of rule-driven rounds (0.5).
 #   WARM=1 LR=3e-4,1e-5 RULE_SHARE=0.25 make models ITERATIONS=6000
+# APG_FROM=dpg (with WARM=1) starts APG's driving policy and value network from the DPG model
+# instead (a fresh adversary): session 4 did so when the adversary's model changed (rl.model,
+# xi_positions), since the APG policy of the old model had learned to flee it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -39,15 +42,27 @@ CROSSROADS=.venv/bin/crossroads
 [ -x "$CROSSROADS" ] || bash scripts/setup.sh
 mkdir -p "$OUT"
 
+init_source() {  # algo → the model file its warm start loads
+    local algo="$1"
+    [ "$algo" = apg ] && [ -n "${APG_FROM:-}" ] && algo="$APG_FROM"
+    echo "${INIT_DIR:-models}/$algo.pt"
+}
+
+if [ "${WARM:-0}" = 1 ]; then  # copied first: the export at the end overwrites models/
+    mkdir -p "$OUT/init"
+    for algo in apg dpg; do
+        [ -f "$OUT/$algo-seed0/checkpoints/last.pt" ] && continue  # resumed: its init is in place
+        src="$(init_source "$algo")"
+        cp "$src" "${src%.pt}.card.json" "$OUT/init/"
+    done
+fi
+
 train() {  # algo
     local algo="$1" resume=() warm=()
     if [ -f "$OUT/$algo-seed0/checkpoints/last.pt" ]; then
         resume=(--resume)
     elif [ "${WARM:-0}" = 1 ]; then
-        mkdir -p "$OUT/init"
-        cp "${INIT_DIR:-models}/$algo.pt" "$OUT/init/$algo.pt"
-        cp "${INIT_DIR:-models}/$algo.card.json" "$OUT/init/$algo.card.json"
-        warm=(--set "init_from=$OUT/init/$algo.pt")
+        warm=(--set "init_from=$OUT/init/$(basename "$(init_source "$algo")")")
     fi
     "$CROSSROADS" train --algo "$algo" --iterations "$ITERATIONS" --workers "$WORKERS" --out "$OUT" \
         --seed 0 "${resume[@]}" --set log_every=250 --set checkpoint_every=500 \

@@ -127,6 +127,26 @@ def test_standing_still_times_out(net: str) -> None:
             _, outcome = world.step(np.array([0.0, -4.5]))
             steps += 1
     assert outcome.kind == "timeout" and steps == 30
+    assert outcome.detail == "still driving after 3 s"  # nobody ahead: nothing about a blocker
+
+
+def test_a_timeout_behind_a_standing_queue_says_how_long_it_stood() -> None:
+    """Nominal left turn, a seed whose queue ahead of the ego never moves (found with the rule
+    controller): the timeout's detail tells a blocked ego from a hesitant one."""
+    from crossroads.evaluation.scenario import load_scenario, to_world_config
+    from support import REPO_ROOT
+
+    path = REPO_ROOT / "scenarios" / "nominal" / "c_three_lane-left.yaml"
+    controller = RuleBasedController()
+    with World(to_world_config(load_scenario(path), path.parent)) as world:
+        obs = world.reset(1713516213)
+        controller.reset(world.candidates)
+        outcome = None
+        while outcome is None:
+            obs, outcome = world.step(controller.decide(obs).action)
+    assert outcome.kind == "timeout", outcome
+    assert outcome.detail.startswith("still driving after 60 s; the vehicle ahead had stood ")
+    assert obs.front_vehicle_stopped_s > 30.0
 
 
 def test_abnormal_vehicles_of_the_paper_cases_show_in_the_world() -> None:

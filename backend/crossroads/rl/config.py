@@ -33,6 +33,7 @@ from crossroads.constants import (
 from crossroads.network.model import TASKS
 
 Algo = Literal["apg", "dpg"]
+XiPositions = Literal["offset", "step"]  # how ξ_x, ξ_y act over the model's horizon (rl.model)
 
 DEFAULT_INTERSECTIONS: tuple[str, ...] = (
     "a_single_lane", "b_two_lane", "c_three_lane",
@@ -57,6 +58,11 @@ class TrainConfig:
     """Penalty factor ρ of J_π = J_track + ρ J_safe (paper: 15)."""
     adversary_interval: int = ADVERSARY_UPDATE_INTERVAL
     """m: the adversary is updated at iterations k with k % m == 0 (paper: 5)."""
+    xi_positions: XiPositions = "offset"
+    """(choice) How the adversary's ξ_x, ξ_y act over the horizon (rl.model): "offset" displaces each
+    predicted position by at most the ξ range without carrying over (ξ_v, ξ_φ still propagate, as
+    printed); "step" adds them to the position at every step as f_other is printed, which lets the
+    adversary carry any participant up to 20 m onto the ego (measured: APG learned to flee)."""
     sample_actions: bool = True
     """Training rollouts draw u ~ π_θ and ξ ~ π_φ by reparameterisation (the paper's u ~ π_θ(s));
     False uses the tanh-squashed means (deterministic rollouts)."""
@@ -169,6 +175,8 @@ class TrainConfig:
             raise ValueError(f"workers: must be ≥ 0, got {self.workers}")
         if self.samples_per_iteration <= 0:
             raise ValueError("samples_per_iteration: must be > 0")
+        if self.xi_positions not in typing.get_args(XiPositions):
+            raise ValueError(f"xi_positions: must be 'offset' or 'step', got {self.xi_positions!r}")
         if not 0.0 <= self.danger_share <= 1.0:
             raise ValueError(f"danger_share: must lie in [0, 1], got {self.danger_share}")
         if not self.danger_threshold >= 0.0:

@@ -15,12 +15,25 @@ and returns per sample J_track = Σ_{i<T} l_i and J_safe = Σ_{i<T} φ_{i+1}. Gr
 the dynamics into u (θ) and ξ (φ); the reference point is data (``reference_points_torch`` computes
 it without gradient, the ego's error against it is differentiable). **(choice)** κ of every
 participant is held at its initial value over the horizon (the model has no routes).
+
+How ξ enters the horizon (``xi_positions``, **(choice)**, ``TrainConfig.xi_positions``):
+
+* ``"step"``: f_other exactly as printed, ξ added at every step, so ξ_x, ξ_y accumulate: 25 steps
+  of ±0.8 m move a participant up to 20 m in any direction (an extra 8 m/s toward the ego).
+  Measured with session 3's APG (docs/measurements/apg-adversary.md): its adversary drove J_safe to
+  150-300 from states where the ego was standing still, braking scored worse than driving on, and
+  the policy learned to flee (collisions at a median 11.3 m/s).
+* ``"offset"`` (default): ξ_v and ξ_φ propagate through f_other as printed (a participant can
+  speed up by up to 5.6 m/s or turn 0.6 rad off its route over the horizon: the paper's
+  over-speeding and rounding of Sec. V-C), while ξ_x, ξ_y displace each predicted position from the
+  participant's own (ξ_v, ξ_φ-driven) trajectory by at most ±0.8 m without carrying over to the next
+  step: a bounded position uncertainty, as the paper motivates ξ ("bounded random noise").
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import NamedTuple, get_args
 
 import torch
 from torch import Tensor
@@ -29,6 +42,7 @@ from crossroads.idc.constraints import penalty, road_constraints, safety_constra
 from crossroads.idc.state import N_OTHERS, PathTensors, reference_points_torch, tracking_error
 from crossroads.idc.utility import utility
 from crossroads.rl.buffer import StateBatch
+from crossroads.rl.config import XiPositions
 from crossroads.sim.ego import ego_step
 from crossroads.sim.other import other_step
 
@@ -52,8 +66,11 @@ def assemble(ego: Tensor, track: Tensor, others: Tensor) -> Tensor:
 class IDCModel:
     """The model f over a fixed set of candidate paths (padded, see ``idc.state.path_tensors``)."""
 
-    def __init__(self, paths: PathTensors) -> None:
+    def __init__(self, paths: PathTensors, xi_positions: XiPositions = "offset") -> None:
+        if xi_positions not in get_args(XiPositions):
+            raise ValueError(f"xi_positions: must be one of {get_args(XiPositions)}, got {xi_positions!r}")
         self.paths = paths
+        self.xi_positions = xi_positions
 
     def track(self, ego: Tensor, path: Tensor, stop: Tensor) -> tuple[Tensor, Tensor]:
         """(x_track [B, 4], road constraints g [B, 4]) of ``ego`` against its path and mode."""
@@ -71,18 +88,33 @@ class IDCModel:
         s = s0 = self.initial_states(batch)
         j_track = torch.zeros(ego.shape[0], dtype=ego.dtype, device=ego.device)
         j_safe = torch.zeros_like(j_track)
+        course = others  # "offset": each participant's trajectory before this step's ξ_x, ξ_y
         for i in range(horizon):
             u = act(s, i)
             xi = disturb(s, i) if disturb is not None else None
             l, _ = utility(s, u)
             ego = ego_step(ego, u)
-            others = other_step(others, kappa, xi)
+            if xi is None or self.xi_positions == "step":
+                others = other_step(others, kappa, xi)
+            else:
+                course = other_step(course, kappa, _without_positions(xi))
+                others = _displaced(course, xi)
             x_track, ref = self.track(ego, batch.path, batch.stop)
             s = assemble(ego, x_track, others)
             g = torch.cat([safety_constraints(s), road_constraints(s, ref.x, ref.y, ref.heading)], dim=-1)
             j_track = j_track + l
             j_safe = j_safe + penalty(g)
         return Rollout(j_track, j_safe, s0)
+
+
+def _without_positions(xi: Tensor) -> Tensor:
+    """ξ with ξ_x = ξ_y = 0 (the part of ξ that propagates in the "offset" mode)."""
+    return torch.cat([torch.zeros_like(xi[..., :2]), xi[..., 2:]], dim=-1)
+
+
+def _displaced(others: Tensor, xi: Tensor) -> Tensor:
+    """``others`` [B, 16, 6] with (ξ_x, ξ_y) added to their positions (not carried to the next step)."""
+    return torch.cat([others[..., :2] + xi[..., :2], others[..., 2:]], dim=-1)
 
 
 def policy_fns(policy: torch.nn.Module, adversary: torch.nn.Module | None, sample: bool

@@ -364,7 +364,10 @@ class World:
                 and not self._inside.contains_any(xs, ys)):
             return Outcome("passed", self.time_s)
         if self.time_s >= self.config.timeout_s - 1e-9:
-            return Outcome("timeout", self.time_s, f"still driving after {self.config.timeout_s:g} s")
+            detail = f"still driving after {self.config.timeout_s:g} s"
+            if obs.front_vehicle_stopped_s > 0.0:  # blocked, not hesitant: say so in the run's record
+                detail += f"; the vehicle ahead had stood {obs.front_vehicle_stopped_s:.1f} s"
+            return Outcome("timeout", self.time_s, detail)
         return None
 
     def curvatures(self, snap: Snapshot, rows: np.ndarray) -> FloatArray:

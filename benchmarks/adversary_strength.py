@@ -1,0 +1,101 @@
+"""How strong an APG model's adversary is: can the driving policy escape it at all?
+
+    .venv/bin/python benchmarks/adversary_strength.py scenarios/nominal/c_three_lane-left.yaml \
+        --policy models/apg.pt [--runs 6] [--every 15] [--xi-positions offset|step]
+
+Drives the scenario's first N seeded episodes with the model and, every ``--every`` steps, puts the
+state through the training model (T = 25) three ways — the policy's own plan, full braking
+(Δa = −JERK_MAX), full acceleration (Δa = +JERK_MAX) — each with ξ ≡ 0 and with the adversary's
+mean ξ, and prints J_safe of all six. A fair adversary leaves some plan with a low J_safe; when
+J_safe stays high whatever the ego does (even standing still), the minimax game cannot be won and
+the policy learns nothing about safety from it. ``--xi-positions`` picks how ξ_x, ξ_y act over the
+horizon (rl.model; default: the model's own training config).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+
+from crossroads.constants import JERK_MAX  # noqa: E402
+from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
+from crossroads.idc.decision import IdcController  # noqa: E402
+from crossroads.idc.state import path_tensors  # noqa: E402
+from crossroads.rl.buffer import to_batch  # noqa: E402
+from crossroads.rl.checkpoint import load_networks  # noqa: E402
+from crossroads.rl.model import IDCModel  # noqa: E402
+from crossroads.rl.sampler import observation_sample  # noqa: E402
+from crossroads.sim.world import World  # noqa: E402
+
+HORIZON = 25  # the paper's T
+PLANS = (("plan", None), ("brake", -JERK_MAX), ("accelerate", JERK_MAX))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scenario", type=Path)
+    parser.add_argument("--policy", required=True, help="a trained APG model (.pt)")
+    parser.add_argument("--runs", type=int, default=6)
+    parser.add_argument("--every", type=int, default=15, help="steps between probed states")
+    parser.add_argument("--xi-positions", choices=("offset", "step"), default=None)
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+
+    networks, config = load_networks(Path(args.policy))
+    if networks.adversary is None:
+        parser.error(f"--policy: {args.policy} has no adversary (a DPG model?)")
+    adversary = networks.adversary
+    xi_positions = args.xi_positions or config.xi_positions
+    controller = IdcController.from_checkpoint(args.policy)
+    spec = load_scenario(args.scenario)
+    rows: list[list[float]] = []  # per probed state: ξ≡0 then adversary, for each plan
+    speeds: list[float] = []
+    with World(to_world_config(spec, args.scenario.parent)) as world:
+        model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), xi_positions=xi_positions)
+        for seed in run_seeds(spec, args.runs):
+            obs = world.reset(seed)
+            controller.reset(world.candidates)
+            outcome, step = None, 0
+            while outcome is None:
+                decision = controller.decide(obs)
+                if step % args.every == 0:
+                    batch = to_batch(observation_sample(world, obs, int(decision.path_index),
+                                                        decision.speed_mode == "stop"))
+                    row = []
+                    for _, jerk in PLANS:
+                        def act(s: torch.Tensor, _: int, jerk: float | None = jerk) -> torch.Tensor:
+                            u = controller.policy.mean_action(s)
+                            return u if jerk is None else torch.stack([u[:, 0], torch.full_like(u[:, 1], jerk)], -1)
+                        with torch.no_grad():
+                            row.append(float(model.rollout(batch, act, None, HORIZON).j_safe[0]))
+                            row.append(float(model.rollout(batch, act, lambda s, _: adversary.mean_action(s),
+                                                           HORIZON).j_safe[0]))
+                    rows.append(row)
+                    speeds.append(float(obs.ego[2]))
+                obs, outcome = world.step(decision.action)
+                step += 1
+
+    table = np.asarray(rows)
+    speed = np.asarray(speeds)
+    print(f"policy {args.policy} (xi_positions={xi_positions}) on {args.scenario}: "
+          f"{len(rows)} states of {args.runs} seeded runs, every {args.every} steps")
+    print(f"{'J_safe over 25 steps':<30}" + "".join(f"{name + ' ξ≡0':>16}{name + ' adv.':>16}" for name, _ in PLANS))
+    for label, mask in (("all states", np.ones(len(speed), bool)), ("ego standing (< 0.5 m/s)", speed < 0.5),
+                        ("ego moving", speed >= 0.5)):
+        if not mask.any():
+            continue
+        print(f"{label + f' ({int(mask.sum())})':<30}" + "".join(f"{np.median(table[mask, k]):>16.1f}"
+                                                                 for k in range(table.shape[1])))
+    best_adv = table[:, 1::2].min(axis=1)
+    print(f"states where no plan keeps J_safe < 1 against the adversary: {int((best_adv >= 1.0).sum())} of {len(rows)} "
+          f"(with ξ ≡ 0: {int((table[:, 0::2].min(axis=1) >= 1.0).sum())})")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Measure the shipped models/apg.pt and models/dpg.pt the way models/README.md reports them.
+#
+#   bash scripts/measure_models.sh            (about 10 min on 2 cores)
+#   make measure
+#
+# Writes into docs/measurements/ (OUT=DIR to change):
+#   nominal-left-200.json      APG, DPG and the rule controller, 200 seeded nominal left turns on
+#                              the issue's default intersection (c_three_lane), Wilson intervals
+#   tracking-{apg,dpg}.txt     no traffic, every candidate path of the six intersections
+#   failure-modes-{apg,dpg}.txt  50 of those runs: collisions classified, the model's view before them
+#   adversary-strength-apg.txt whether APG's adversary leaves the driving policy a safe plan
+# The batches go to a scratch SQLite store (DB=URL to keep them elsewhere).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+OUT="${OUT:-docs/measurements}"
+DB="${DB:-sqlite:///var/measure.db}"
+WORKERS="${WORKERS:-2}"
+SCENARIO=scenarios/nominal/c_three_lane-left.yaml
+PY=.venv/bin/python
+CROSSROADS=.venv/bin/crossroads
+[ -x "$CROSSROADS" ] || bash scripts/setup.sh
+mkdir -p var "$OUT"
+
+"$CROSSROADS" evaluate "$SCENARIO" --policy models/apg.pt --policy models/dpg.pt --policy rule --runs 200 \
+    --workers "$WORKERS" --db "$DB" --traces none --json > "$OUT/nominal-left-200.json"
+for algo in apg dpg; do
+    "$PY" benchmarks/tracking.py --policy "models/$algo.pt" > "$OUT/tracking-$algo.txt"
+    "$PY" benchmarks/failure_modes.py "$SCENARIO" --policy "models/$algo.pt" --runs 50 > "$OUT/failure-modes-$algo.txt"
+done
+"$PY" benchmarks/adversary_strength.py "$SCENARIO" --policy models/apg.pt > "$OUT/adversary-strength-apg.txt"
+echo "measurements written to $OUT/"
