@@ -66,14 +66,20 @@ def test_ego_is_mirrored_into_sumo_with_its_footprint(net: str) -> None:
         assert EGO_ID not in set(obs.participants.ids)
 
 
+def drive_to_outcome(world: World, seed: int):
+    """One episode with the rule controller to its end: (last observation, outcome)."""
+    controller = RuleBasedController()
+    obs = world.reset(seed)
+    controller.reset(world.candidates)
+    outcome = None
+    while outcome is None:
+        obs, outcome = world.step(controller.decide(obs).action)
+    return obs, outcome
+
+
 def test_rule_controller_passes_an_empty_intersection(net: str) -> None:
     with World(config(net, demand=NO_TRAFFIC)) as world:
-        controller = RuleBasedController()
-        obs = world.reset(1)
-        controller.reset(world.candidates)
-        outcome = None
-        while outcome is None:
-            obs, outcome = world.step(controller.decide(obs).action)
+        _, outcome = drive_to_outcome(world, seed=1)
         assert outcome.kind == "passed", outcome
         assert world.stop_line_crossed_s is not None
         assert 2.0 < outcome.time_s - world.stop_line_crossed_s < 20.0
@@ -137,13 +143,8 @@ def test_a_timeout_behind_a_standing_queue_says_how_long_it_stood() -> None:
     from support import REPO_ROOT
 
     path = REPO_ROOT / "scenarios" / "nominal" / "c_three_lane-left.yaml"
-    controller = RuleBasedController()
     with World(to_world_config(load_scenario(path), path.parent)) as world:
-        obs = world.reset(1713516213)
-        controller.reset(world.candidates)
-        outcome = None
-        while outcome is None:
-            obs, outcome = world.step(controller.decide(obs).action)
+        obs, outcome = drive_to_outcome(world, seed=1713516213)
     assert outcome.kind == "timeout", outcome
     assert outcome.detail.startswith("still driving after 60 s; the vehicle ahead had stood ")
     assert obs.front_vehicle_stopped_s > 30.0
