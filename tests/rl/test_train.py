@@ -99,6 +99,9 @@ def test_cli_overrides_and_plot(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="algo"):
         apply_overrides(TrainConfig(), {"algo": "ppo"})
 
+    with pytest.raises(ValueError, match="xi_positions"):
+        apply_overrides(TrainConfig(), {"xi_positions": "drift"})
+
     run = tmp_path / "run"
     run.mkdir()
     (run / "metrics.csv").write_text(
@@ -110,3 +113,11 @@ def test_cli_overrides_and_plot(tmp_path: Path) -> None:
     assert out.stat().st_size > 1000
     bad = CliRunner().invoke(app, ["--set", "nope=1", "--out", str(tmp_path)])
     assert bad.exit_code == 2 and "unknown training option" in bad.output
+
+
+def test_configs_from_before_xi_positions_keep_the_step_model() -> None:
+    """A run saved before the field existed trained with ξ added at every step; a new one round-trips."""
+    old = TrainConfig(algo="apg").to_json()
+    del old["xi_positions"]
+    assert TrainConfig.from_json(old).xi_positions == "step"
+    assert TrainConfig.from_json(TrainConfig().to_json()).xi_positions == "offset"

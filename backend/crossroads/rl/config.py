@@ -207,7 +207,11 @@ class TrainConfig:
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> TrainConfig:
-        return apply_overrides(cls(), {k: v for k, v in data.items()})
+        data = dict(data)
+        # written before the field existed (sessions 2-3): those runs added ξ_x, ξ_y at every step,
+        # so a resumed old run keeps its model instead of switching under its own checkpoints
+        data.setdefault("xi_positions", "step")
+        return apply_overrides(cls(), data)
 
 
 def _coerce(name: str, hint: Any, value: Any) -> Any:
