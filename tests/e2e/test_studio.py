@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from playwright.sync_api import TimeoutError as PlaywrightTimeoutError
 
 from support import SUMO_CROSS_NET, sumo_example
 
@@ -148,7 +149,11 @@ def test_cancel_a_running_batch(studio_url: str, browser: Any, artifacts: Path) 
     page.wait_for_selector("#batch-status:has-text('cancelled')")
     recorded = int(re.search(r"\((\d+)/40 recorded", page.inner_text("#summary")).group(1))  # type: ignore[union-attr]
     assert recorded < 40
-    assert "cancelled" in page.locator("#batches tr", has_text="e2e-cancel").first.inner_text()
+    # the batch list refreshes on its own (and redraws its rows) after the cancel: wait for the
+    # batch's row to say so, looked up afresh each time
+    page.wait_for_function(
+        "() => [...document.querySelectorAll('#batches tr')].find(tr => tr.innerText.includes('e2e-cancel'))"
+        "?.innerText.includes('cancelled')", timeout=START_TIMEOUT_MS)
     page.screenshot(path=str(artifacts / "08-cancelled.png"), full_page=True)
     assert not console_errors, console_errors
 
@@ -190,8 +195,12 @@ def test_upload_a_network_and_drive_it_live(studio_url: str, browser: Any, artif
     page.wait_for_selector(".live-state[data-status=running], .live-state[data-status=done]",
                            timeout=START_TIMEOUT_MS)
     page.screenshot(path=str(artifacts / "12-live-status.png"), full_page=True)
-    if page.locator("#live-stop").is_visible():
-        page.click("#live-stop")
+    stop = page.locator("#live-stop")
+    if stop.is_visible():
+        try:
+            stop.click(timeout=5_000)
+        except PlaywrightTimeoutError:  # the episode ended between the check and the click
+            assert not stop.is_visible()
     page.wait_for_selector(".live-state[data-status=stopped], .live-state[data-status=done]",
                            timeout=START_TIMEOUT_MS)
     viewer.close()
