@@ -29,6 +29,7 @@ from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import path_tensors  # noqa: E402
 from crossroads.rl.buffer import to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
+from crossroads.rl.config import XI_POSITION_MODES  # noqa: E402
 from crossroads.rl.model import IDCModel  # noqa: E402
 from crossroads.rl.sampler import observation_sample  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
@@ -43,7 +44,7 @@ def main() -> None:
     parser.add_argument("--policy", required=True, help="a trained APG model (.pt)")
     parser.add_argument("--runs", type=int, default=6)
     parser.add_argument("--every", type=int, default=15, help="steps between probed states")
-    parser.add_argument("--xi-positions", choices=("offset", "step"), default=None)
+    parser.add_argument("--xi-positions", choices=XI_POSITION_MODES, default=None)
     args = parser.parse_args()
     torch.set_num_threads(1)
 
@@ -52,7 +53,7 @@ def main() -> None:
         parser.error(f"--policy: {args.policy} has no adversary (a DPG model?)")
     adversary = networks.adversary
     xi_positions = args.xi_positions or config.xi_positions
-    controller = IdcController.from_checkpoint(args.policy)
+    controller = IdcController(networks.policy, networks.value, name=Path(args.policy).stem)
     spec = load_scenario(args.scenario)
     rows: list[list[float]] = []  # per probed state: ξ≡0 then adversary, for each plan
     speeds: list[float] = []

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from crossroads.idc.constraints import penalty, road_constraints, safety_constraints
-from crossroads.idc.state import reference_point, tracking_error
+from crossroads.idc.state import OTHERS, reference_point, tracking_error
 from crossroads.idc.utility import utility
 from crossroads.rl.model import IDCModel
 from crossroads.sim.ego import ego_step
@@ -74,7 +74,7 @@ def test_offset_positions_do_not_accumulate(path_set) -> None:
         model = IDCModel(path_set.tensors(dtype=torch.float64), xi_positions=mode)
 
         def act(s, i, xs=xs):
-            xs.append(float(s[0, 12]))  # first participant's p_x as the step sees it
+            xs.append(float(s[0, OTHERS.start]))  # first participant's p_x as the step sees it
             return torch.zeros(1, 2, dtype=torch.float64)
 
         model.rollout(batch, act, lambda s, i: push, T)

@@ -34,6 +34,13 @@ from crossroads.network.model import TASKS
 
 Algo = Literal["apg", "dpg"]
 XiPositions = Literal["offset", "step"]  # how ξ_x, ξ_y act over the model's horizon (rl.model)
+XI_POSITION_MODES: tuple[str, ...] = typing.get_args(XiPositions)
+
+
+def check_xi_positions(value: str) -> None:
+    """Refuse an unknown ``xi_positions`` (TrainConfig and IDCModel take it)."""
+    if value not in XI_POSITION_MODES:
+        raise ValueError(f"xi_positions: must be one of {XI_POSITION_MODES}, got {value!r}")
 
 DEFAULT_INTERSECTIONS: tuple[str, ...] = (
     "a_single_lane", "b_two_lane", "c_three_lane",
@@ -175,8 +182,7 @@ class TrainConfig:
             raise ValueError(f"workers: must be ≥ 0, got {self.workers}")
         if self.samples_per_iteration <= 0:
             raise ValueError("samples_per_iteration: must be > 0")
-        if self.xi_positions not in typing.get_args(XiPositions):
-            raise ValueError(f"xi_positions: must be 'offset' or 'step', got {self.xi_positions!r}")
+        check_xi_positions(self.xi_positions)
         if not 0.0 <= self.danger_share <= 1.0:
             raise ValueError(f"danger_share: must lie in [0, 1], got {self.danger_share}")
         if not self.danger_threshold >= 0.0:

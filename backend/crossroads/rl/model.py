@@ -20,9 +20,10 @@ How ξ enters the horizon (``xi_positions``, **(choice)**, ``TrainConfig.xi_posi
 
 * ``"step"``: f_other exactly as printed, ξ added at every step, so ξ_x, ξ_y accumulate: 25 steps
   of ±0.8 m move a participant up to 20 m in any direction (an extra 8 m/s toward the ego).
-  Measured with session 3's APG (docs/measurements/apg-adversary.md): its adversary drove J_safe to
-  150-300 from states where the ego was standing still, braking scored worse than driving on, and
-  the policy learned to flee (collisions at a median 11.3 m/s).
+  Measured with session 3's APG (docs/measurements/apg-adversary.md): against its adversary the
+  median J_safe was 117 with the ego standing and 157-176 moving (0 with ξ ≡ 0), whether the ego
+  kept to its plan, braked or accelerated, and the policy learned to flee (collisions at a median
+  11.3 m/s).
 * ``"offset"`` (default): ξ_v and ξ_φ propagate through f_other as printed (a participant can
   speed up by up to 5.6 m/s or turn 0.6 rad off its route over the horizon: the paper's
   over-speeding and rounding of Sec. V-C), while ξ_x, ξ_y displace each predicted position from the
@@ -33,7 +34,7 @@ How ξ enters the horizon (``xi_positions``, **(choice)**, ``TrainConfig.xi_posi
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import NamedTuple, get_args
+from typing import NamedTuple
 
 import torch
 from torch import Tensor
@@ -42,7 +43,7 @@ from crossroads.idc.constraints import penalty, road_constraints, safety_constra
 from crossroads.idc.state import N_OTHERS, PathTensors, reference_points_torch, tracking_error
 from crossroads.idc.utility import utility
 from crossroads.rl.buffer import StateBatch
-from crossroads.rl.config import XiPositions
+from crossroads.rl.config import XiPositions, check_xi_positions
 from crossroads.sim.ego import ego_step
 from crossroads.sim.other import other_step
 
@@ -67,8 +68,7 @@ class IDCModel:
     """The model f over a fixed set of candidate paths (padded, see ``idc.state.path_tensors``)."""
 
     def __init__(self, paths: PathTensors, xi_positions: XiPositions = "offset") -> None:
-        if xi_positions not in get_args(XiPositions):
-            raise ValueError(f"xi_positions: must be one of {get_args(XiPositions)}, got {xi_positions!r}")
+        check_xi_positions(xi_positions)
         self.paths = paths
         self.xi_positions = xi_positions
 
