@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Measure the shipped models/apg.pt and models/dpg.pt the way models/README.md reports them.
 #
-#   bash scripts/measure_models.sh            (about 10 min on 2 cores)
+#   bash scripts/measure_models.sh            (session 4: 5.5 min on 2 cores beside a test run;
+#                                             the tracking benchmark alone took 6.4 min beside training)
 #   make measure
 #
 # Writes into docs/measurements/ (OUT=DIR to change):
