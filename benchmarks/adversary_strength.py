@@ -14,7 +14,6 @@ horizon (rl.model; default: the model's own training config).
 
 from __future__ import annotations
 
-import argparse
 import os
 from pathlib import Path
 
@@ -33,16 +32,13 @@ from crossroads.rl.config import XI_POSITION_MODES  # noqa: E402
 from crossroads.rl.model import IDCModel  # noqa: E402
 from crossroads.rl.sampler import observation_sample  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
+from probing import HORIZON, model_parser, probed_states  # noqa: E402
 
-HORIZON = 25  # the paper's T
 PLANS = (("plan", None), ("brake", -JERK_MAX), ("accelerate", JERK_MAX))
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scenario", type=Path)
-    parser.add_argument("--policy", required=True, help="a trained APG model (.pt)")
-    parser.add_argument("--runs", type=int, default=6)
+    parser = model_parser(__doc__.splitlines()[0], runs=6)
     parser.add_argument("--every", type=int, default=15, help="steps between probed states")
     parser.add_argument("--xi-positions", choices=XI_POSITION_MODES, default=None)
     args = parser.parse_args()
@@ -59,28 +55,20 @@ def main() -> None:
     speeds: list[float] = []
     with World(to_world_config(spec, args.scenario.parent)) as world:
         model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), xi_positions=xi_positions)
-        for seed in run_seeds(spec, args.runs):
-            obs = world.reset(seed)
-            controller.reset(world.candidates)
-            outcome, step = None, 0
-            while outcome is None:
-                decision = controller.decide(obs)
-                if step % args.every == 0:
-                    batch = to_batch(observation_sample(world, obs, int(decision.path_index),
-                                                        decision.speed_mode == "stop"))
-                    row = []
-                    for _, jerk in PLANS:
-                        def act(s: torch.Tensor, _: int, jerk: float | None = jerk) -> torch.Tensor:
-                            u = controller.policy.mean_action(s)
-                            return u if jerk is None else torch.stack([u[:, 0], torch.full_like(u[:, 1], jerk)], -1)
-                        with torch.no_grad():
-                            row.append(float(model.rollout(batch, act, None, HORIZON).j_safe[0]))
-                            row.append(float(model.rollout(batch, act, lambda s, _: adversary.mean_action(s),
-                                                           HORIZON).j_safe[0]))
-                    rows.append(row)
-                    speeds.append(float(obs.ego[2]))
-                obs, outcome = world.step(decision.action)
-                step += 1
+        for obs, decision in probed_states(world, controller, run_seeds(spec, args.runs), args.every):
+            batch = to_batch(observation_sample(world, obs, int(decision.path_index),
+                                                decision.speed_mode == "stop"))
+            row = []
+            for _, jerk in PLANS:
+                def act(s: torch.Tensor, _: int, jerk: float | None = jerk) -> torch.Tensor:
+                    u = controller.policy.mean_action(s)
+                    return u if jerk is None else torch.stack([u[:, 0], torch.full_like(u[:, 1], jerk)], -1)
+                with torch.no_grad():
+                    row.append(float(model.rollout(batch, act, None, HORIZON).j_safe[0]))
+                    row.append(float(model.rollout(batch, act, lambda s, _: adversary.mean_action(s),
+                                                   HORIZON).j_safe[0]))
+            rows.append(row)
+            speeds.append(float(obs.ego[2]))
 
     table = np.asarray(rows)
     speed = np.asarray(speeds)

@@ -20,11 +20,9 @@ as the plan, the model itself (its constant-velocity predictions, its circles) i
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 from collections import Counter, deque
-from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
@@ -39,8 +37,8 @@ from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.model import IDCModel  # noqa: E402
 from crossroads.rl.sampler import observation_sample  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
+from probing import HORIZON, model_parser  # noqa: E402
 
-HORIZON = 25  # the paper's T
 STANDING_MPS = 0.5
 SIDE_BAND_M = 2.0  # |longitudinal offset| below this: the other is beside the ego
 
@@ -63,10 +61,7 @@ def model_j_safe(model: IDCModel, controller: IdcController, sample: Samples) ->
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scenario", type=Path)
-    parser.add_argument("--policy", required=True, help="a trained model (.pt)")
-    parser.add_argument("--runs", type=int, default=50)
+    parser = model_parser(__doc__.splitlines()[0], runs=50)
     parser.add_argument("--look-back", type=float, default=1.0, help="[s] before impact (≤ 5)")
     args = parser.parse_args()
     torch.set_num_threads(1)

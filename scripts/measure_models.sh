@@ -11,6 +11,7 @@
 #   tracking-{apg,dpg}.txt     no traffic, every candidate path of the six intersections
 #   failure-modes-{apg,dpg}.txt  50 of those runs: collisions classified, the model's view before them
 #   adversary-strength-apg.txt whether APG's adversary leaves the driving policy a safe plan
+#   value-ordering-{apg,dpg}.txt whether the value network picks the path the model rates best
 # The batches go to a scratch SQLite store (DB=URL to keep them elsewhere).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -29,6 +30,7 @@ mkdir -p var "$OUT"
 for algo in apg dpg; do
     "$PY" benchmarks/tracking.py --policy "models/$algo.pt" > "$OUT/tracking-$algo.txt"
     "$PY" benchmarks/failure_modes.py "$SCENARIO" --policy "models/$algo.pt" --runs 50 > "$OUT/failure-modes-$algo.txt"
+    "$PY" benchmarks/value_ordering.py "$SCENARIO" --policy "models/$algo.pt" > "$OUT/value-ordering-$algo.txt"
 done
 "$PY" benchmarks/adversary_strength.py "$SCENARIO" --policy models/apg.pt > "$OUT/adversary-strength-apg.txt"
 echo "measurements written to $OUT/"

@@ -27,6 +27,9 @@
 # APG_FROM=dpg (with WARM=1) starts APG's driving policy and value network from the DPG model
 # instead (a fresh adversary): session 4 did so when the adversary's model changed (rl.model,
 # xi_positions), since the APG policy of the old model had learned to flee it.
+# ADV_LR sets the adversary's schedule apart from LR (default: LR). Session 5 ran the adversary ten
+# times slower than the policy (ADV_LR=3e-5,1e-6): with it as fast as the policy, run 4's APG
+# learned to rush through the junction (7.3 s travel against DPG's 16.3 s) and collided more.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -34,7 +37,8 @@ ITERATIONS="${1:-${ITERATIONS:-8000}}"
 OUT="${2:-${OUT:-var/train}}"
 WORKERS="${WORKERS:-1}"
 LR="${LR:-1e-3,1e-5}"
-SHORT_RUN=(--set "policy_lr=$LR" --set "value_lr=$LR" --set "adversary_lr=$LR"
+ADV_LR="${ADV_LR:-$LR}"
+SHORT_RUN=(--set "policy_lr=$LR" --set "value_lr=$LR" --set "adversary_lr=$ADV_LR"
            --set max_grad_norm=10 --set "rule_share=${RULE_SHARE:-0.5}")
 [ "${PAPER:-0}" = 1 ] && SHORT_RUN=()
 THREADS="${THREADS:-1}"
