@@ -97,3 +97,14 @@ def test_onnx_export_equals_torch(tmp_path: Path, path_set, model) -> None:
     result = CliRunner().invoke(app, ["onnx", str(run), "-o", str(tmp_path / "cli")])
     assert result.exit_code == 0, result.output
     assert "max |onnx - torch| / max(1, |torch|)" in result.output
+
+
+def test_describe_cpu_names_the_model_and_its_vector_extensions() -> None:
+    from crossroads.rl.export import describe_cpu
+
+    cpuinfo = ("processor\t: 0\nmodel name\t: AMD EPYC\nflags\t\t: fpu sse2 avx fma avx2 sha_ni\n\n"
+               "processor\t: 1\nmodel name\t: AMD EPYC\nflags\t\t: fpu sse2 avx fma avx2 sha_ni\n")
+    assert describe_cpu(cpuinfo) == "AMD EPYC (avx2)"
+    assert describe_cpu("model name : Xeon\nflags : avx2 avx512f amx_tile\n") == "Xeon (avx2, avx512f, amx_tile)"
+    assert describe_cpu("model name : Old\nflags : sse2\n") == "Old (no avx2)"
+    assert describe_cpu("processor : 0\n") == ""

@@ -28,6 +28,10 @@ from crossroads.rl.checkpoint import FORMAT, load_checkpoint
 from crossroads.rl.config import TrainConfig
 
 NETWORK_KEYS = ("policy", "value", "adversary")
+# Vector extensions, which decide much of torch's CPU speed. Named on the card because the same
+# 2-core run trained about 3x slower in session 5 (an AVX2-only EPYC) than in session 4, whose
+# host the card did not describe.
+VECTOR_FLAGS = ("avx2", "avx512f", "avx512_bf16", "amx_tile")
 
 
 def _metrics(run_dir: Path) -> list[dict[str, str]]:
@@ -103,6 +107,7 @@ def model_card(run_dir: Path, checkpoint: dict[str, Any], source: Path,
         "lineage": history,
         "hardware": {
             "machine": platform.machine(),
+            "cpu": _cpu(),
             "cpus": os.cpu_count(),
             "python": platform.python_version(),
             "torch": torch.__version__,
@@ -114,6 +119,28 @@ def model_card(run_dir: Path, checkpoint: dict[str, Any], source: Path,
         "source_checkpoint": str(source),
         "config": config,
     }
+
+
+def describe_cpu(cpuinfo: str) -> str:
+    """'MODEL NAME (flags…)' from the text of /proc/cpuinfo; '' when it names no model."""
+    model, flags = "", set()
+    for line in cpuinfo.splitlines():
+        key, _, value = line.partition(":")
+        if key.strip() == "model name" and not model:
+            model = value.strip()
+        elif key.strip() == "flags" and not flags:
+            flags = set(value.split())
+    if not model:
+        return ""
+    present = [flag for flag in VECTOR_FLAGS if flag in flags]
+    return f"{model} ({', '.join(present) or 'no avx2'})"
+
+
+def _cpu() -> str:
+    try:
+        return describe_cpu(Path("/proc/cpuinfo").read_text()) or platform.processor()
+    except OSError:  # not Linux
+        return platform.processor()
 
 
 def export_model(run: Path, out: Path, notes: tuple[str, ...] = ()) -> tuple[Path, Path]:
