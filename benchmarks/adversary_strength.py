@@ -6,7 +6,9 @@
 Drives the scenario's first N seeded episodes with the model and, every ``--every`` steps, puts the
 state through the training model (T = 25) three ways — the policy's own plan, full braking
 (Δa = −JERK_MAX), full acceleration (Δa = +JERK_MAX) — each with ξ ≡ 0 and with the adversary's
-mean ξ, and prints J_safe of all six. A fair adversary leaves some plan with a low J_safe; when
+mean ξ, and prints J_safe of all six. Training draws ξ from the adversary's Gaussian instead of
+taking its mean (``sample_actions``), so the last lines repeat the count with ξ drawn, the median
+of ``--draws`` seeded draws per state and plan. A fair adversary leaves some plan with a low J_safe; when
 J_safe stays high whatever the ego does (even standing still), the minimax game cannot be won and
 the policy learns nothing about safety from it. ``--xi-positions`` picks how ξ_x, ξ_y act over the
 horizon (rl.model; default: the model's own training config).
@@ -41,6 +43,7 @@ def main() -> None:
     parser = model_parser(__doc__.splitlines()[0], runs=6)
     parser.add_argument("--every", type=int, default=15, help="steps between probed states")
     parser.add_argument("--xi-positions", choices=XI_POSITION_MODES, default=None)
+    parser.add_argument("--draws", type=int, default=8, help="ξ draws per state and plan (median)")
     args = parser.parse_args()
     torch.set_num_threads(1)
 
@@ -52,13 +55,15 @@ def main() -> None:
     controller = IdcController(networks.policy, networks.value, name=Path(args.policy).stem)
     spec = load_scenario(args.scenario)
     rows: list[list[float]] = []  # per probed state: ξ≡0 then adversary, for each plan
+    drawn: list[list[float]] = []  # per probed state: median J_safe with ξ drawn, for each plan
     speeds: list[float] = []
+    generator = torch.Generator().manual_seed(0)
     with World(to_world_config(spec, args.scenario.parent)) as world:
         model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), xi_positions=xi_positions)
         for obs, decision in probed_states(world, controller, run_seeds(spec, args.runs), args.every):
             batch = to_batch(observation_sample(world, obs, int(decision.path_index),
                                                 decision.speed_mode == "stop"))
-            row = []
+            row, row_drawn = [], []
             for _, jerk in PLANS:
                 def act(s: torch.Tensor, _: int, jerk: float | None = jerk) -> torch.Tensor:
                     u = controller.policy.mean_action(s)
@@ -67,7 +72,11 @@ def main() -> None:
                     row.append(float(model.rollout(batch, act, None, HORIZON).j_safe[0]))
                     row.append(float(model.rollout(batch, act, lambda s, _: adversary.mean_action(s),
                                                    HORIZON).j_safe[0]))
+                    row_drawn.append(float(np.median([
+                        float(model.rollout(batch, act, lambda s, _: adversary.sample(s, generator),
+                                            HORIZON).j_safe[0]) for _ in range(args.draws)])))
             rows.append(row)
+            drawn.append(row_drawn)
             speeds.append(float(obs.ego[2]))
 
     table = np.asarray(rows)
@@ -84,6 +93,12 @@ def main() -> None:
     best_adv = table[:, 1::2].min(axis=1)
     print(f"states where no plan keeps J_safe < 1 against the adversary: {int((best_adv >= 1.0).sum())} of {len(rows)} "
           f"(with ξ ≡ 0: {int((table[:, 0::2].min(axis=1) >= 1.0).sum())})")
+    sampled = np.asarray(drawn)
+    moving = speed >= 0.5
+    print(f"with ξ drawn as in training (median of {args.draws} draws): no plan keeps J_safe < 1 in "
+          f"{int((sampled.min(axis=1) >= 1.0).sum())} of {len(rows)} states; median J_safe for a moving ego: "
+          + ", ".join(f"{name} {np.median(sampled[moving, k]) if moving.any() else float('nan'):.1f}"
+                      for k, (name, _) in enumerate(PLANS)))
 
 
 if __name__ == "__main__":

@@ -12,7 +12,8 @@
 #   failure-modes-{apg,dpg}.txt  50 of those runs: collisions classified, the model's view before them
 #   adversary-strength-apg.txt whether APG's adversary leaves the driving policy a safe plan
 #   value-ordering-{apg,dpg}.txt whether the value network picks the path the model rates best
-# The batches go to a scratch SQLite store (DB=URL to keep them elsewhere).
+# The batches go to a scratch SQLite store (DB=URL to keep them elsewhere). MODELS="apg" re-measures
+# the per-model files of APG alone (after retraining one model); the 200-run batch always runs all three.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -27,10 +28,12 @@ mkdir -p var "$OUT"
 
 "$CROSSROADS" evaluate "$SCENARIO" --policy models/apg.pt --policy models/dpg.pt --policy rule --runs 200 \
     --workers "$WORKERS" --db "$DB" --traces none --json > "$OUT/nominal-left-200.json"
-for algo in apg dpg; do
+for algo in ${MODELS:-apg dpg}; do
     "$PY" benchmarks/tracking.py --policy "models/$algo.pt" > "$OUT/tracking-$algo.txt"
     "$PY" benchmarks/failure_modes.py "$SCENARIO" --policy "models/$algo.pt" --runs 50 > "$OUT/failure-modes-$algo.txt"
     "$PY" benchmarks/value_ordering.py "$SCENARIO" --policy "models/$algo.pt" > "$OUT/value-ordering-$algo.txt"
 done
-"$PY" benchmarks/adversary_strength.py "$SCENARIO" --policy models/apg.pt > "$OUT/adversary-strength-apg.txt"
+if [[ " ${MODELS:-apg dpg} " == *" apg "* ]]; then
+    "$PY" benchmarks/adversary_strength.py "$SCENARIO" --policy models/apg.pt > "$OUT/adversary-strength-apg.txt"
+fi
 echo "measurements written to $OUT/"
