@@ -7,7 +7,7 @@ Drives the scenario's first N seeded episodes with the model and, every ``--ever
 state through the training model (T = 25) three ways — the policy's own plan, full braking
 (Δa = −JERK_MAX), full acceleration (Δa = +JERK_MAX) — each with ξ ≡ 0 and with the adversary's
 mean ξ, and prints J_safe of all six. Training draws ξ from the adversary's Gaussian instead of
-taking its mean (``sample_actions``), so the last lines repeat the count with ξ drawn, the median
+taking its mean (``sample_actions``), so the last line repeats the count with ξ drawn, the median
 of ``--draws`` seeded draws per state and plan. A fair adversary leaves some plan with a low J_safe; when
 J_safe stays high whatever the ego does (even standing still), the minimax game cannot be won and
 the policy learns nothing about safety from it. ``--xi-positions`` picks how ξ_x, ξ_y act over the
