@@ -28,7 +28,7 @@ from crossroads.constants import JERK_MAX  # noqa: E402
 from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import path_tensors  # noqa: E402
-from crossroads.rl.buffer import to_batch  # noqa: E402
+from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.config import XI_POSITION_MODES  # noqa: E402
 from crossroads.rl.model import IDCModel  # noqa: E402
@@ -61,8 +61,9 @@ def main() -> None:
     with World(to_world_config(spec, args.scenario.parent)) as world:
         model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), xi_positions=xi_positions)
         for obs, decision in probed_states(world, controller, run_seeds(spec, args.runs), args.every):
-            batch = to_batch(observation_sample(world, obs, int(decision.path_index),
-                                                decision.speed_mode == "stop"))
+            sample = observation_sample(world, obs, int(decision.path_index), decision.speed_mode == "stop")
+            batch = to_batch(sample)
+            draws = to_batch(Samples.concat([sample] * args.draws))  # one row per draw, one rollout
             row, row_drawn = [], []
             for _, jerk in PLANS:
                 def act(s: torch.Tensor, _: int, jerk: float | None = jerk) -> torch.Tensor:
@@ -72,9 +73,8 @@ def main() -> None:
                     row.append(float(model.rollout(batch, act, None, HORIZON).j_safe[0]))
                     row.append(float(model.rollout(batch, act, lambda s, _: adversary.mean_action(s),
                                                    HORIZON).j_safe[0]))
-                    row_drawn.append(float(np.median([
-                        float(model.rollout(batch, act, lambda s, _: adversary.sample(s, generator),
-                                            HORIZON).j_safe[0]) for _ in range(args.draws)])))
+                    drawn_safe = model.rollout(draws, act, lambda s, _: adversary.sample(s, generator), HORIZON).j_safe
+                    row_drawn.append(float(np.median(drawn_safe.numpy())))
             rows.append(row)
             drawn.append(row_drawn)
             speeds.append(float(obs.ego[2]))

@@ -26,10 +26,10 @@ import torch  # noqa: E402
 from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import path_tensors  # noqa: E402
-from crossroads.rl.buffer import to_batch  # noqa: E402
+from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel  # noqa: E402
-from crossroads.rl.sampler import observation_sample  # noqa: E402
+from crossroads.rl.sampler import as_sample, others_and_curvature  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 from probing import HORIZON, model_parser, probed_states  # noqa: E402
 
@@ -51,26 +51,24 @@ def main() -> None:
     networks, _ = load_networks(Path(args.policy))
     controller = IdcController(networks.policy, networks.value, name=Path(args.policy).stem)
     spec = load_scenario(args.scenario)
-    values: list[np.ndarray] = []  # per probed state with ≥ 2 candidates: v_w of each path
+    values: list[np.ndarray] = []  # per probed state: v_w of each path
     tracks: list[np.ndarray] = []  # J_track of the policy's plan on each path
     safes: list[np.ndarray] = []  # J_safe of the same plans
     with World(to_world_config(spec, args.scenario.parent)) as world:
         model = IDCModel(path_tensors(world.candidates, dtype=torch.float32))
         n_paths = len(world.candidates)
+        if n_paths < 2:
+            raise SystemExit(f"{args.scenario}: one candidate path, so the value network has nothing to choose")
         for obs, decision in probed_states(world, controller, run_seeds(spec, args.runs), args.every):
-            if n_paths < 2:
-                break
             stop = decision.speed_mode == "stop"
-            samples = [to_batch(observation_sample(world, obs, p, stop)) for p in range(n_paths)]
-            with torch.no_grad():
-                rolled = [model.rollout(b, lambda s, _: controller.policy.mean_action(s), None, HORIZON)
-                          for b in samples]
+            others, kappa = others_and_curvature(world, obs)
+            batch = to_batch(Samples.concat([as_sample(obs.ego, others, kappa, p, stop) for p in range(n_paths)]))
+            with torch.no_grad():  # every path's state in one rollout, one row each
+                rolled = model.rollout(batch, lambda s, _: controller.policy.mean_action(s), None, HORIZON)
             values.append(np.asarray(decision.path_values, dtype=np.float64))
-            tracks.append(np.array([float(r.j_track[0]) for r in rolled]))
-            safes.append(np.array([float(r.j_safe[0]) for r in rolled]))
+            tracks.append(rolled.j_track.double().numpy())
+            safes.append(rolled.j_safe.double().numpy())
 
-    if not values:
-        raise SystemExit(f"{args.scenario}: no state with two or more candidate paths was probed")
     v, jt, js = np.stack(values), np.stack(tracks), np.stack(safes)
     picked = v.argmin(axis=1)
     rows = np.arange(len(v))

@@ -2,7 +2,8 @@
 # Measure the shipped models/apg.pt and models/dpg.pt the way models/README.md reports them.
 #
 #   bash scripts/measure_models.sh            (session 4: 5.5 min on 2 cores beside a test run;
-#                                             the tracking benchmark alone took 6.4 min beside training)
+#                                             the tracking benchmark alone took 6.4 min beside training;
+#                                             session 5, MODELS=apg on a slower host: 11.9 min)
 #   make measure
 #
 # Writes into docs/measurements/ (OUT=DIR to change):
@@ -20,6 +21,7 @@ cd "$(dirname "$0")/.."
 OUT="${OUT:-docs/measurements}"
 DB="${DB:-sqlite:///var/measure.db}"
 WORKERS="${WORKERS:-2}"
+MODELS="${MODELS:-apg dpg}"
 SCENARIO=scenarios/nominal/c_three_lane-left.yaml
 PY=.venv/bin/python
 CROSSROADS=.venv/bin/crossroads
@@ -28,12 +30,12 @@ mkdir -p var "$OUT"
 
 "$CROSSROADS" evaluate "$SCENARIO" --policy models/apg.pt --policy models/dpg.pt --policy rule --runs 200 \
     --workers "$WORKERS" --db "$DB" --traces none --json > "$OUT/nominal-left-200.json"
-for algo in ${MODELS:-apg dpg}; do
+for algo in $MODELS; do
     "$PY" benchmarks/tracking.py --policy "models/$algo.pt" > "$OUT/tracking-$algo.txt"
     "$PY" benchmarks/failure_modes.py "$SCENARIO" --policy "models/$algo.pt" --runs 50 > "$OUT/failure-modes-$algo.txt"
     "$PY" benchmarks/value_ordering.py "$SCENARIO" --policy "models/$algo.pt" > "$OUT/value-ordering-$algo.txt"
 done
-if [[ " ${MODELS:-apg dpg} " == *" apg "* ]]; then
+if [[ " $MODELS " == *" apg "* ]]; then
     "$PY" benchmarks/adversary_strength.py "$SCENARIO" --policy models/apg.pt > "$OUT/adversary-strength-apg.txt"
 fi
 echo "measurements written to $OUT/"

@@ -30,7 +30,7 @@
 # ADV_LR sets the adversary's schedule apart from LR (default: LR). Run 5 (session 5) ran it ten
 # times slower than the policy (ADV_LR=3e-5,1e-6), APG and DPG both from run 4's DPG model:
 #   WARM=1 APG_FROM=dpg LR=3e-4,1e-5 ADV_LR=3e-5,1e-6 RULE_SHARE=0.25 make models ITERATIONS=3200
-# What it gave is in models/README.md (APG kept, DPG not: a short restart at 3e-4 cost DPG passes).
+# What it gave is in models/README.md (APG kept; DPG not: it passed fewer after this short restart).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
