@@ -31,6 +31,9 @@
 # times slower than the policy (ADV_LR=3e-5,1e-6), APG and DPG both from run 4's DPG model:
 #   WARM=1 APG_FROM=dpg LR=3e-4,1e-5 ADV_LR=3e-5,1e-6 RULE_SHARE=0.25 make models ITERATIONS=3200
 # What it gave is in models/README.md (APG kept; DPG not: it passed fewer after this short restart).
+# ALGOS picks the runs (default "apg dpg"); ALGOS=apg trains and exports APG alone. Run 6 (session
+# 6) did so, from run 5's APG, with the model's nominal floor (rl.model) new in that session:
+#   WARM=1 ALGOS=apg LR=1e-4,1e-5 ADV_LR=3e-5,1e-6 RULE_SHARE=0.25 make models ITERATIONS=3000
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -43,6 +46,10 @@ SHORT_RUN=(--set "policy_lr=$LR" --set "value_lr=$LR" --set "adversary_lr=$ADV_L
            --set max_grad_norm=10 --set "rule_share=${RULE_SHARE:-0.5}")
 [ "${PAPER:-0}" = 1 ] && SHORT_RUN=()
 THREADS="${THREADS:-1}"
+read -r -a ALGOS <<< "${ALGOS:-apg dpg}"
+for algo in "${ALGOS[@]}"; do
+    [ "$algo" = apg ] || [ "$algo" = dpg ] || { echo "ALGOS: unknown algorithm '$algo' (apg, dpg)" >&2; exit 2; }
+done
 CROSSROADS=.venv/bin/crossroads
 [ -x "$CROSSROADS" ] || bash scripts/setup.sh
 mkdir -p "$OUT"
@@ -55,7 +62,7 @@ init_source() {  # algo → the model file its warm start loads
 
 if [ "${WARM:-0}" = 1 ]; then  # copied first: the export at the end overwrites models/
     mkdir -p "$OUT/init"
-    for algo in apg dpg; do
+    for algo in "${ALGOS[@]}"; do
         [ -f "$OUT/$algo-seed0/checkpoints/last.pt" ] && continue  # resumed: its init is in place
         src="$(init_source "$algo")"
         cp "$src" "${src%.pt}.card.json" "$OUT/init/"
@@ -75,14 +82,17 @@ train() {  # algo
         >> "$OUT/$algo.log" 2>&1
 }
 
-train apg & apg_pid=$!
-train dpg & dpg_pid=$!
-wait "$apg_pid"
-wait "$dpg_pid"
+pids=()
+for algo in "${ALGOS[@]}"; do
+    train "$algo" & pids+=($!)
+done
+for pid in "${pids[@]}"; do
+    wait "$pid"
+done
 
-for algo in apg dpg; do
+for algo in "${ALGOS[@]}"; do
     "$CROSSROADS" train export "$OUT/$algo-seed0" -o "models/$algo.pt"
     "$CROSSROADS" train plot "$OUT/$algo-seed0" -o "models/$algo.curves.png"
     cp "$OUT/$algo-seed0/metrics.csv" "models/$algo.metrics.csv"
 done
-echo "models/apg.pt and models/dpg.pt written (cards: models/*.card.json)"
+echo "models written: ${ALGOS[*]} (cards: models/*.card.json)"

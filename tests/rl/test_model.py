@@ -105,3 +105,26 @@ def test_gradients_reach_actions_and_xi(path_set) -> None:
     out = model.rollout(batch, lambda s, i: u[i], lambda s, i: xi[i], T)
     (out.j_track + 15.0 * out.j_safe).sum().backward()
     assert u.grad.abs().sum() > 0 and xi.grad.abs().sum() > 0
+
+
+def test_nominal_floor_is_never_milder_than_either_prediction(path_set) -> None:
+    """Each constraint is the worse of the adversary's and the ξ ≡ 0 scene: J_safe is at least that
+    of either scene alone and at most their sum; J_track and the ego's states do not change."""
+    batch = make_batch(path_set, 6, seed=3, dtype=torch.float64)
+    rng = np.random.default_rng(4)
+    actions = torch.as_tensor(rng.uniform([-0.4, -4.5], [0.4, 4.5], (T, 6, 2)))
+    xis = torch.as_tensor(rng.uniform([-0.8, -0.8, -0.075, -0.025], [0.8, 0.8, 0.225, 0.025], (T, 6, 16, 4)))
+    plain = IDCModel(path_set.tensors(dtype=torch.float64))
+    floored = IDCModel(path_set.tensors(dtype=torch.float64), nominal_floor=True)
+    act = lambda s, i: actions[i]  # noqa: E731
+    adv = lambda s, i: xis[i]  # noqa: E731
+    adversarial, nominal = plain.rollout(batch, act, adv, T), plain.rollout(batch, act, None, T)
+    both = floored.rollout(batch, act, adv, T)
+    assert torch.equal(both.j_track, adversarial.j_track)
+    assert torch.all(both.j_safe >= torch.maximum(adversarial.j_safe, nominal.j_safe) - 1e-12)
+    assert torch.all(both.j_safe <= adversarial.j_safe + nominal.j_safe + 1e-12)
+    assert torch.any(both.j_safe > adversarial.j_safe), "the floor should bind somewhere in this batch"
+    # DPG (no adversary) and ξ ≡ 0 are untouched by the floor
+    assert torch.equal(floored.rollout(batch, act, None, T).j_safe, nominal.j_safe)
+    zero = floored.rollout(batch, act, lambda s, i: torch.zeros_like(xis[i]), T)
+    torch.testing.assert_close(zero.j_safe, nominal.j_safe, rtol=0, atol=1e-12)

@@ -121,3 +121,11 @@ def test_configs_from_before_xi_positions_keep_the_step_model() -> None:
     del old["xi_positions"]
     assert TrainConfig.from_json(old).xi_positions == "step"
     assert TrainConfig.from_json(TrainConfig().to_json()).xi_positions == "offset"
+
+
+def test_configs_from_before_the_nominal_floor_keep_the_adversary_alone() -> None:
+    """Runs of sessions 2-5 trained against the adversary's prediction alone; resumed, they still do."""
+    old = TrainConfig(algo="apg").to_json()
+    del old["nominal_floor"]
+    assert TrainConfig.from_json(old).nominal_floor is False
+    assert TrainConfig.from_json(TrainConfig().to_json()).nominal_floor is True

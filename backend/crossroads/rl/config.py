@@ -70,6 +70,11 @@ class TrainConfig:
     predicted position by at most the ξ range without carrying over (ξ_v, ξ_φ still propagate, as
     printed); "step" adds them to the position at every step as f_other is printed, which lets the
     adversary carry any participant up to 20 m onto the ego (measured: APG learned to flee)."""
+    nominal_floor: bool = True
+    """(choice) APG: each safety constraint of the model is the worse of the adversary's prediction
+    and the ξ ≡ 0 one (rl.model), so a half-trained adversary cannot make the scene look safer than
+    plain prediction does (measured: session 5's adversary sped up a standing queue ahead of the
+    ego, and its policy drove into such queues). False: the adversary's prediction alone."""
     sample_actions: bool = True
     """Training rollouts draw u ~ π_θ and ξ ~ π_φ by reparameterisation (the paper's u ~ π_θ(s));
     False uses the tanh-squashed means (deterministic rollouts)."""
@@ -217,6 +222,7 @@ class TrainConfig:
         # written before the field existed (sessions 2-3): those runs added ξ_x, ξ_y at every step,
         # so a resumed old run keeps its model instead of switching under its own checkpoints
         data.setdefault("xi_positions", "step")
+        data.setdefault("nominal_floor", False)  # likewise (sessions 2-5)
         return apply_overrides(cls(), data)
 
 

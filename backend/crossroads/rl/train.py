@@ -71,7 +71,8 @@ def train(config: TrainConfig, *, resume: bool = False) -> Path:
     # worlds: round r of worker w draws from default_rng([seed, w, r]) (rl.sampler); TAR: tar_seed + r
 
     paths = PathSet.build(config.intersections, config.tasks)
-    model = IDCModel(paths.tensors(device=device), xi_positions=config.xi_positions)
+    model = IDCModel(paths.tensors(device=device), xi_positions=config.xi_positions,
+                     nominal_floor=config.nominal_floor)
     learner = Learner(config, model, device)
     buffer = ReplayBuffer(config.buffer_size, buffer_seed)
     start = 0
