@@ -11,7 +11,9 @@ taking its mean (``sample_actions``), so the last line repeats the count with ξ
 of ``--draws`` seeded draws per state and plan. A fair adversary leaves some plan with a low J_safe; when
 J_safe stays high whatever the ego does (even standing still), the minimax game cannot be won and
 the policy learns nothing about safety from it. ``--xi-positions`` picks how ξ_x, ξ_y act over the
-horizon (rl.model; default: the model's own training config).
+horizon (rl.model; default: the model's own training config). The last line gives the adversary's
+mean ξ_v for participants standing just ahead of the ego against all others: an adversary that
+speeds up a queue in front of the ego predicts a milder scene than ξ ≡ 0 (rl.model, nominal floor).
 """
 
 from __future__ import annotations
@@ -24,10 +26,10 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from crossroads.constants import JERK_MAX  # noqa: E402
+from crossroads.constants import JERK_MAX, XI_RANGES  # noqa: E402
 from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.decision import IdcController  # noqa: E402
-from crossroads.idc.state import path_tensors  # noqa: E402
+from crossroads.idc.state import PAD_DISTANCE_M, path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.config import XI_POSITION_MODES  # noqa: E402
@@ -37,6 +39,19 @@ from crossroads.sim.world import World  # noqa: E402
 from probing import HORIZON, model_parser, probed_states  # noqa: E402
 
 PLANS = (("plan", None), ("brake", -JERK_MAX), ("accelerate", JERK_MAX))
+STANDING_MPS = 0.5
+AHEAD_M = (0.0, 25.0)  # [m] "just ahead": longitudinally in this range of the ego's centre …
+AHEAD_LATERAL_M = 2.0  # … and laterally within this
+
+
+def standing_ahead(ego: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """Mask over the participant slots ``others[16, 6]``: standing just ahead of the ego (its frame).
+    (Padded slots lie ``PAD_DISTANCE_M`` behind the ego, never ahead.)"""
+    c, s = np.cos(ego[4]), np.sin(ego[4])
+    dx, dy = others[:, 0] - ego[0], others[:, 1] - ego[1]
+    along, across = c * dx + s * dy, -s * dx + c * dy
+    return (along > AHEAD_M[0]) & (along < AHEAD_M[1]) & (np.abs(across) < AHEAD_LATERAL_M) & \
+        (others[:, 2] < STANDING_MPS)
 
 
 def main() -> None:
@@ -57,12 +72,20 @@ def main() -> None:
     rows: list[list[float]] = []  # per probed state: ξ≡0 then adversary, for each plan
     drawn: list[list[float]] = []  # per probed state: median J_safe with ξ drawn, for each plan
     speeds: list[float] = []
+    xi_v_ahead: list[float] = []  # the adversary's mean ξ_v of each participant standing ahead
+    xi_v_rest: list[float] = []  # … of every other real (not padded) participant
     generator = torch.Generator().manual_seed(0)
     with World(to_world_config(spec, args.scenario.parent)) as world:
         model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), xi_positions=xi_positions)
         for obs, decision in probed_states(world, controller, run_seeds(spec, args.runs), args.every):
             sample = observation_sample(world, obs, int(decision.path_index), decision.speed_mode == "stop")
             batch = to_batch(sample)
+            with torch.no_grad():
+                xi_v = adversary.mean_action(model.initial_states(batch))[0, :, 2].numpy()
+            ahead = standing_ahead(sample.ego[0], sample.others[0])
+            real = np.hypot(*(sample.others[0, :, :2] - sample.ego[0, :2]).T) < 0.5 * PAD_DISTANCE_M
+            xi_v_ahead += xi_v[ahead & real].tolist()
+            xi_v_rest += xi_v[~ahead & real].tolist()
             draws = to_batch(Samples.concat([sample] * args.draws))  # one row per draw, one rollout
             row, row_drawn = [], []
             for _, jerk in PLANS:
@@ -99,6 +122,11 @@ def main() -> None:
           f"{int((sampled.min(axis=1) >= 1.0).sum())} of {len(rows)} states; median J_safe for a moving ego: "
           + ", ".join(f"{name} {np.median(sampled[moving, k]) if moving.any() else float('nan'):.1f}"
                       for k, (name, _) in enumerate(PLANS)))
+    quartiles = lambda v: "n/a" if not v else "median {:.3f} (10-90 %: {:.3f}-{:.3f})".format(  # noqa: E731
+        *np.percentile(v, [50, 10, 90]))
+    print(f"the adversary's mean ξ_v [m/s per step, range {XI_RANGES['v'][0]}-{XI_RANGES['v'][1]}]: participants "
+          f"standing ≤ {AHEAD_M[1]:g} m ahead of the ego ({len(xi_v_ahead)}) {quartiles(xi_v_ahead)}; "
+          f"all others ({len(xi_v_rest)}) {quartiles(xi_v_rest)}")
 
 
 if __name__ == "__main__":

@@ -11,7 +11,10 @@ IDC policy and prints:
   speed at impact;
 * for every collision, the state one second (``--look-back``) before impact put through the training model (the
   differentiable IDC model, T = 25 steps, ξ ≡ 0): J_safe of the policy's own plan (its mean action
-  at every step) against J_safe of full braking (Δa = −JERK_MAX throughout).
+  at every step) against J_safe of full braking (Δa = −JERK_MAX throughout);
+* for an APG model, J_safe of the policy's plan from the same states with the adversary's mean ξ,
+  as APG trained before the nominal floor (rl.model): an adversary that predicts a milder scene
+  than ξ ≡ 0 right before the collisions taught the policy that those scenes were safe.
 
 When braking would have kept J_safe low and the policy's plan did not, the model saw the danger and
 the policy did not act on it: a training problem, not a modelling one. When braking scores as badly
@@ -23,6 +26,7 @@ from __future__ import annotations
 import math
 import os
 from collections import Counter, deque
+from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
@@ -34,8 +38,10 @@ from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_co
 from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
+from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel  # noqa: E402
 from crossroads.rl.sampler import observation_sample  # noqa: E402
+from crossroads.rl.networks import Adversary  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 from probing import HORIZON, model_parser  # noqa: E402
 
@@ -50,14 +56,19 @@ def where(ego: np.ndarray, x: float, y: float) -> str:
     return "front" if ahead > SIDE_BAND_M else ("rear" if ahead < -SIDE_BAND_M else "side")
 
 
-def model_j_safe(model: IDCModel, controller: IdcController, sample: Samples) -> tuple[float, float]:
-    """(J_safe of the policy's plan, J_safe of full braking) from one state."""
+def model_j_safe(model: IDCModel, controller: IdcController, sample: Samples,
+                 adversary: Adversary | None) -> tuple[float, float, float]:
+    """J_safe from one state of (the policy's plan, full braking) with ξ ≡ 0, and of the policy's
+    plan with the adversary's mean ξ (NaN without an adversary)."""
     batch = to_batch(sample)
     brake = torch.tensor([[0.0, -JERK_MAX]], dtype=torch.float32)
+    own = lambda s, _: controller.policy.mean_action(s)  # noqa: E731
     with torch.no_grad():
-        plan = model.rollout(batch, lambda s, _: controller.policy.mean_action(s), None, HORIZON)
+        plan = model.rollout(batch, own, None, HORIZON)
         stop = model.rollout(batch, lambda s, _: brake.expand(s.shape[0], 2), None, HORIZON)
-    return float(plan.j_safe[0]), float(stop.j_safe[0])
+        adversarial = (float("nan") if adversary is None else
+                       float(model.rollout(batch, own, lambda s, _: adversary.mean_action(s), HORIZON).j_safe[0]))
+    return float(plan.j_safe[0]), float(stop.j_safe[0]), adversarial
 
 
 def main() -> None:
@@ -68,12 +79,14 @@ def main() -> None:
     look_back_steps = max(1, min(50, round(args.look_back / 0.1)))
 
     spec = load_scenario(args.scenario)
-    controller = IdcController.from_checkpoint(args.policy)
+    networks, _ = load_networks(Path(args.policy))
+    controller = IdcController(networks.policy, networks.value, name=Path(args.policy).stem)
     outcomes: Counter[str] = Counter()
     kinds: Counter[str] = Counter()
     impact_speeds: list[float] = []
     plan_safe: list[float] = []
     brake_safe: list[float] = []
+    adversary_safe: list[float] = []
     with World(to_world_config(spec, args.scenario.parent)) as world:
         model = IDCModel(path_tensors(world.candidates, dtype=torch.float32))
         for seed in run_seeds(spec, args.runs):
@@ -94,9 +107,10 @@ def main() -> None:
             standing = "standing" if snap.speed[row] < STANDING_MPS else "moving"
             kinds[f"{where(obs.ego, snap.x[row], snap.y[row])}, {standing} {snap.kind[row]}"] += 1
             impact_speeds.append(float(obs.ego[2]))
-            plan, brake = model_j_safe(model, controller, recent[0])
+            plan, brake, adversarial = model_j_safe(model, controller, recent[0], networks.adversary)
             plan_safe.append(plan)
             brake_safe.append(brake)
+            adversary_safe.append(adversarial)
 
     print(f"policy {args.policy} on {args.scenario} ({args.runs} seeded runs)")
     print("outcomes: " + ", ".join(f"{k} {v}" for k, v in outcomes.most_common()))
@@ -113,6 +127,11 @@ def main() -> None:
           f"{np.median(plan_a):.1f}, full braking median {np.median(brake_a):.1f}; braking predicted "
           f"safer in {int((brake_a < plan_a).sum())} of {len(plan_a)} "
           f"(J_safe < 1 with braking in {int((brake_a < 1.0).sum())})")
+    if networks.adversary is not None:
+        adv_a = np.asarray(adversary_safe)
+        print(f"the same states with the adversary's mean ξ (the scene APG trained on before the nominal floor): "
+              f"policy's plan median {np.median(adv_a):.1f}; milder than ξ ≡ 0 in {int((adv_a < plan_a).sum())} "
+              f"of {len(adv_a)}, harsher in {int((adv_a > plan_a).sum())}")
 
 
 if __name__ == "__main__":

@@ -50,6 +50,25 @@ def test_zero_demand_scale_gives_an_empty_scene(left_paths: PathSet) -> None:
     assert world_cfg.demand.vehicles_per_hour == pytest.approx(2 * 400.0)
 
 
+def test_empty_share_empties_that_share_of_the_episodes_and_nothing_else(left_paths: PathSet) -> None:
+    """About ``empty_share`` of the episodes have no traffic; the others keep their drawn demand, and
+    the world, the light and the ego's start are drawn before the coin, so they stay as without it."""
+    def demands(**changes: object) -> list[float]:
+        sampler = _sampler(left_paths, demand_scale=(1.0, 1.0), **changes)
+        return [sampler.episode_config(np.random.default_rng([0, 0, r]))[0].demand.vehicles_per_hour
+                for r in range(400)]
+
+    shared = demands(empty_share=0.25)
+    empty = sum(d == 0.0 for d in shared)
+    assert 70 <= empty <= 130  # 100 expected
+    assert all(d == pytest.approx(400.0) for d in shared if d != 0.0)
+    assert all(d == pytest.approx(400.0) for d in demands(empty_share=0.0))
+    for r in range(20):
+        with_coin = _sampler(left_paths, empty_share=0.5).episode_config(np.random.default_rng([0, 0, r]))
+        without = _sampler(left_paths, empty_share=0.0).episode_config(np.random.default_rng([0, 0, r]))
+        assert replace(with_coin[0], demand=without[0].demand) == without[0] and with_coin[1:] == without[1:]
+
+
 def test_a_round_is_repeatable(left_paths: PathSet) -> None:
     a = _sampler(left_paths).round(3, None)
     b = _sampler(left_paths).round(3, None)
@@ -58,7 +77,7 @@ def test_a_round_is_repeatable(left_paths: PathSet) -> None:
 
 
 @pytest.mark.parametrize(("field", "value", "message"), [
-    ("rule_share", 1.5, "rule_share"), ("demand_scale", (1.0, 0.5), "demand_scale"),
+    ("rule_share", 1.5, "rule_share"), ("empty_share", -0.1, "empty_share"), ("demand_scale", (1.0, 0.5), "demand_scale"),
     ("demand_scale", (-1.0, 0.5), "demand_scale")])
 def test_bad_sampling_options_are_named(field: str, value: object, message: str) -> None:
     with pytest.raises(ValueError, match=message):

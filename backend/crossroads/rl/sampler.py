@@ -13,7 +13,8 @@ Driving **(choice)**: rounds r < ``rule_rounds`` drive with the rule-based contr
 policy leaves the road within a few steps); later rounds with the policy's mean action on τ plus
 Gaussian exploration noise (``explore_std`` of each half range), clipped, except a share
 ``rule_share`` of them, still driven by the rule controller. Each episode's traffic is SPEC §2's
-scaled by a factor drawn from ``demand_scale``. The speed mode is the
+scaled by a factor drawn from ``demand_scale``, and a share ``empty_share`` of the episodes has no
+traffic at all. The speed mode is the
 paper's light logic (``idc.lights.choose_speed_mode``): before the stop line pass on green and stop
 on red as training demands (SPEC §2), the yellow rule on yellow, pass once past the line, stop
 behind a stopped queue. The rule driver is given τ as its only candidate, so every recorded state lies
@@ -199,13 +200,16 @@ class EpisodeSampler:
         phase = int(np.searchsorted(np.cumsum(durations), t, side="right"))
         phase = min(phase, len(durations) - 1)
         elapsed = float(t - (np.cumsum(durations)[phase] - durations[phase]))
+        ego_start = EgoStart(distance_to_stop_line_m=float(rng.uniform(*cfg.start_distance_m)),
+                             speed_mps=float(rng.uniform(*cfg.start_speed_mps)))
+        demand_factor = float(rng.uniform(*cfg.demand_scale))
+        if cfg.empty_share > 0.0 and rng.random() < cfg.empty_share:  # drawn only then: older runs' draws stay
+            demand_factor = 0.0
         world_cfg = WorldConfig(
             net_file=self._net(name), task=task,  # type: ignore[arg-type]
             signal_start=SignalStart(phase_index=phase, elapsed_s=min(elapsed, durations[phase] - 0.1)),
-            ego_start=EgoStart(distance_to_stop_line_m=float(rng.uniform(*cfg.start_distance_m)),
-                               speed_mps=float(rng.uniform(*cfg.start_speed_mps))),
-            warmup_s=cfg.warmup_s, timeout_s=cfg.max_episode_steps * 0.1 + 1.0,
-            demand=scaled_demand(float(rng.uniform(*cfg.demand_scale))))
+            ego_start=ego_start, warmup_s=cfg.warmup_s, timeout_s=cfg.max_episode_steps * 0.1 + 1.0,
+            demand=scaled_demand(demand_factor))
         return world_cfg, name, task, j
 
     def round(self, round_index: int, weights: PolicyWeights | None) -> Samples:
