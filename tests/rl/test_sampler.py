@@ -69,6 +69,20 @@ def test_empty_share_empties_that_share_of_the_episodes_and_nothing_else(left_pa
         assert replace(with_coin[0], demand=without[0].demand) == without[0] and with_coin[1:] == without[1:]
 
 
+def test_standing_car_copies_follow_the_episode_and_leave_it_unchanged(left_paths: PathSet) -> None:
+    """A round returns its episode's states, then the copies with a standing car (rl.augment); the
+    episode is the same as without them."""
+    plain = _sampler(left_paths, standing_car_share=0.0).round(2, None)
+    both = _sampler(left_paths, standing_car_share=0.5).round(2, None)
+    n = len(plain.ego)
+    assert n < len(both.ego) < 2 * n
+    np.testing.assert_array_equal(both.ego[:n], plain.ego)
+    np.testing.assert_array_equal(both.others[:n], plain.others)
+    vehicles = both.others[n:, :8]  # each copy holds the standing 5.0 × 1.8 m car among its vehicles
+    car = (vehicles[..., 2] == 0.0) & (vehicles[..., 4] == 5.0) & (np.abs(vehicles[..., 5] - 1.8) < 1e-6)
+    assert np.all(car.any(axis=1))
+
+
 def test_a_round_is_repeatable(left_paths: PathSet) -> None:
     a = _sampler(left_paths).round(3, None)
     b = _sampler(left_paths).round(3, None)
@@ -77,7 +91,8 @@ def test_a_round_is_repeatable(left_paths: PathSet) -> None:
 
 
 @pytest.mark.parametrize(("field", "value", "message"), [
-    ("rule_share", 1.5, "rule_share"), ("empty_share", -0.1, "empty_share"), ("demand_scale", (1.0, 0.5), "demand_scale"),
+    ("rule_share", 1.5, "rule_share"), ("empty_share", -0.1, "empty_share"),
+    ("standing_car_share", 2.0, "standing_car_share"), ("standing_car_gap_m", (3.0, 1.0), "standing_car_gap_m"), ("demand_scale", (1.0, 0.5), "demand_scale"),
     ("demand_scale", (-1.0, 0.5), "demand_scale")])
 def test_bad_sampling_options_are_named(field: str, value: object, message: str) -> None:
     with pytest.raises(ValueError, match=message):

@@ -133,6 +133,13 @@ class TrainConfig:
     draws nothing, as runs before it did). A factor drawn from ``demand_scale`` leaves a scene empty
     only below ~0.03, and session 5's APG, never shown one, braked from 8.33 to 3.5 m/s on an empty
     straight road: the scene of the paper's tracking claim (``benchmarks/tracking.py``)."""
+    standing_car_share: float = 0.25
+    """(choice) Share of the sampled states that also enter the buffer as a copy with a car standing
+    on the path ahead of the ego (rl.augment): the collisions of sessions 2-6 were mostly with a
+    vehicle standing in front, which the world shows only briefly in the pass mode. 0: none (runs
+    before the option)."""
+    standing_car_gap_m: tuple[float, float] = (0.5, 30.0)
+    """(choice) [m] bumper gap of that car ahead of the ego, drawn uniformly."""
     danger_share: float = 0.5
     """(choice) Share of every batch drawn from the buffer's dangerous states (J_safe of the
     policy's plan above ``danger_threshold``); 0 = the paper's uniform draws (rl.buffer)."""
@@ -197,6 +204,11 @@ class TrainConfig:
             raise ValueError(f"danger_share: must lie in [0, 1], got {self.danger_share}")
         if not self.danger_threshold >= 0.0:
             raise ValueError(f"danger_threshold: must be ≥ 0, got {self.danger_threshold}")
+        if not 0.0 <= self.standing_car_share <= 1.0:
+            raise ValueError(f"standing_car_share: must lie in [0, 1], got {self.standing_car_share}")
+        low, high = self.standing_car_gap_m
+        if not 0.0 <= low <= high:
+            raise ValueError(f"standing_car_gap_m: need 0 <= low <= high, got {self.standing_car_gap_m}")
         if not 0.0 <= self.empty_share <= 1.0:
             raise ValueError(f"empty_share: must lie in [0, 1], got {self.empty_share}")
         if not 0.0 <= self.rule_share <= 1.0:
@@ -231,6 +243,7 @@ class TrainConfig:
         data.setdefault("xi_positions", "step")
         data.setdefault("nominal_floor", False)  # likewise (sessions 2-5)
         data.setdefault("empty_share", 0.0)  # likewise (sessions 2-5): keeps their sampling draws
+        data.setdefault("standing_car_share", 0.0)  # likewise (sessions 2-6)
         return apply_overrides(cls(), data)
 
 

@@ -14,7 +14,8 @@ policy leaves the road within a few steps); later rounds with the policy's mean 
 Gaussian exploration noise (``explore_std`` of each half range), clipped, except a share
 ``rule_share`` of them, still driven by the rule controller. Each episode's traffic is SPEC §2's
 scaled by a factor drawn from ``demand_scale``, and a share ``empty_share`` of the episodes has no
-traffic at all. The speed mode is the
+traffic at all. A share ``standing_car_share`` of the recorded states is returned twice, the copy
+with a car standing on τ ahead of the ego (``rl.augment``). The speed mode is the
 paper's light logic (``idc.lights.choose_speed_mode``): before the stop line pass on green and stop
 on red as training demands (SPEC §2), the yellow rule on yellow, pass once past the line, stop
 behind a stopped queue. The rule driver is given τ as its only candidate, so every recorded state lies
@@ -48,6 +49,7 @@ from crossroads.constants import JERK_MAX, STEER_RATE_MAX
 from crossroads.idc.lights import choose_speed_mode
 from crossroads.idc.state import build_states, select_others
 from crossroads.planning import CandidatePath
+from crossroads.rl.augment import standing_car_copies
 from crossroads.rl.buffer import Samples
 from crossroads.rl.config import TrainConfig
 from crossroads.sim.config import EgoStart, SignalStart, WorldConfig
@@ -255,7 +257,10 @@ class EpisodeSampler:
                     break
         finally:
             world.close()
-        return Samples.concat(rows)
+        recorded = Samples.concat(rows)
+        # drawn after the episode, so the episode's own draws stay those of runs without the option
+        extra = standing_car_copies(recorded, path, cfg.standing_car_share, cfg.standing_car_gap_m, rng)
+        return Samples.concat([recorded, extra])
 
 
 # --- executors -------------------------------------------------------------------------------------
