@@ -33,7 +33,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from crossroads.constants import JERK_MAX  # noqa: E402
+from crossroads.constants import CONGESTION_STOP_S, JERK_MAX  # noqa: E402
 from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import path_tensors  # noqa: E402
@@ -87,17 +87,20 @@ def main() -> None:
     plan_safe: list[float] = []
     brake_safe: list[float] = []
     adversary_safe: list[float] = []
+    modes: list[tuple[str, float]] = []  # (speed mode, vehicle ahead stood [s]) at the look-back
     with World(to_world_config(spec, args.scenario.parent)) as world:
         model = IDCModel(path_tensors(world.candidates, dtype=torch.float32))
         for seed in run_seeds(spec, args.runs):
             obs = world.reset(seed)
             controller.reset(world.candidates)
             recent: deque[Samples] = deque(maxlen=look_back_steps + 1)
+            context: deque[tuple[str, float]] = deque(maxlen=look_back_steps + 1)  # mode, vehicle ahead stood [s]
             outcome = None
             while outcome is None:
                 decision = controller.decide(obs)
                 recent.append(observation_sample(world, obs, int(decision.path_index),
                                                  decision.speed_mode == "stop"))
+                context.append((decision.speed_mode, obs.front_vehicle_stopped_s))
                 obs, outcome = world.step(decision.action)
             outcomes[outcome.kind] += 1
             if outcome.kind != "collision":
@@ -107,6 +110,7 @@ def main() -> None:
             standing = "standing" if snap.speed[row] < STANDING_MPS else "moving"
             kinds[f"{where(obs.ego, snap.x[row], snap.y[row])}, {standing} {snap.kind[row]}"] += 1
             impact_speeds.append(float(obs.ego[2]))
+            modes.append(context[0])
             plan, brake, adversarial = model_j_safe(model, controller, recent[0], networks.adversary)
             plan_safe.append(plan)
             brake_safe.append(brake)
@@ -122,6 +126,11 @@ def main() -> None:
     speeds = np.asarray(impact_speeds)
     print(f"ego speed at impact [m/s]: median {np.median(speeds):.1f}, "
           f"25-75 % {np.percentile(speeds, 25):.1f}-{np.percentile(speeds, 75):.1f}")
+    n_pass = sum(mode == "pass" for mode, _ in modes)
+    fresh = sum(mode == "pass" and 0.0 < stood <= CONGESTION_STOP_S for mode, stood in modes)
+    print(f"speed mode {look_back_steps / 10:g} s before impact: pass {n_pass}, stop {len(modes) - n_pass}; "
+          f"in the pass mode behind a vehicle standing for at most the {CONGESTION_STOP_S:g} s before the "
+          f"light logic stops: {fresh}")
     plan_a, brake_a = np.asarray(plan_safe), np.asarray(brake_safe)
     print(f"{look_back_steps / 10:g} s before impact, the model's J_safe over {HORIZON} steps: policy's plan median "
           f"{np.median(plan_a):.1f}, full braking median {np.median(brake_a):.1f}; braking predicted "

@@ -13,6 +13,7 @@
 #   failure-modes-{apg,dpg}.txt  50 of those runs: collisions classified, the model's view before them
 #   adversary-strength-apg.txt whether APG's adversary leaves the driving policy a safe plan
 #   value-ordering-{apg,dpg}.txt whether the value network picks the path the model rates best
+#   queue-response.txt         whether each model stops for a single car standing ahead (no traffic)
 # The batches go to a scratch SQLite store (DB=URL to keep them elsewhere). MODELS="apg" re-measures
 # the per-model files of APG alone (after retraining one model); the 200-run batch always runs all three.
 set -euo pipefail
@@ -38,4 +39,5 @@ done
 if [[ " $MODELS " == *" apg "* ]]; then
     "$PY" benchmarks/adversary_strength.py "$SCENARIO" --policy models/apg.pt > "$OUT/adversary-strength-apg.txt"
 fi
+"$PY" benchmarks/queue_response.py --policy models/apg.pt --policy models/dpg.pt > "$OUT/queue-response.txt"
 echo "measurements written to $OUT/"
