@@ -32,6 +32,7 @@ import torch  # noqa: E402
 from crossroads.constants import EGO_LENGTH_M, JERK_MAX  # noqa: E402
 from crossroads.idc.state import N_OTHERS, pad_participant, path_tensors  # noqa: E402
 from crossroads.network import catalogue  # noqa: E402
+from crossroads.rl.augment import CAR_LENGTH_M, CAR_WIDTH_M  # noqa: E402  (the training copies' car)
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel, assemble  # noqa: E402
 from crossroads.sim.config import WorldConfig  # noqa: E402
@@ -39,7 +40,6 @@ from crossroads.sim.ego import ego_step  # noqa: E402
 from crossroads.sim.traffic import TrafficDemand  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 
-CAR_LENGTH_M, CAR_WIDTH_M = 5.0, 1.8  # SUMO's passenger car
 START_S_M = 5.0  # [m] the ego's start along the path
 NO_TRAFFIC = TrafficDemand(vehicles_per_hour=0, cyclists_per_hour=0, pedestrians_per_hour=0)
 

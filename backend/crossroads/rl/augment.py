@@ -3,8 +3,8 @@
 Why (docs/measurements/why-the-models-crash.md §8): the models' collisions are mostly with a vehicle
 that stands in front of the ego, in the pass mode — the vehicle ahead has stood less than the 3 s
 after which the light logic switches to the stop mode. The sampler sees such states only for those
-few seconds of each queue, and ``benchmarks/queue_response.py`` showed every shipped policy driving
-into a single car standing on an empty road. So a share of the sampled states also enters the
+few seconds of each queue, and ``benchmarks/queue_response.py`` showed the shipped policies driving
+into a single car standing on an empty road from almost every speed and gap (APG 22, DPG 24 of 24). So a share of the sampled states also enters the
 buffer as a copy with one more participant: a car (SUMO's passenger car, 5.0 × 1.8 m) standing on
 the candidate path the state is recorded with, a bumper gap drawn uniformly ahead of the ego. The
 differentiable model then scores every plan from that copy against the standing car; nothing else
