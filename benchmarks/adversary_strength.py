@@ -36,7 +36,7 @@ from crossroads.rl.config import XI_POSITION_MODES  # noqa: E402
 from crossroads.rl.model import IDCModel  # noqa: E402
 from crossroads.rl.sampler import observation_sample  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
-from probing import HORIZON, model_parser, probed_states  # noqa: E402
+from probing import HORIZON, ego_frame, model_parser, probed_states  # noqa: E402
 
 PLANS = (("plan", None), ("brake", -JERK_MAX), ("accelerate", JERK_MAX))
 STANDING_MPS = 0.5
@@ -47,9 +47,7 @@ AHEAD_LATERAL_M = 2.0  # … and laterally within this
 def standing_ahead(ego: np.ndarray, others: np.ndarray) -> np.ndarray:
     """Mask over the participant slots ``others[16, 6]``: standing just ahead of the ego (its frame).
     (Padded slots lie ``PAD_DISTANCE_M`` behind the ego, never ahead.)"""
-    c, s = np.cos(ego[4]), np.sin(ego[4])
-    dx, dy = others[:, 0] - ego[0], others[:, 1] - ego[1]
-    along, across = c * dx + s * dy, -s * dx + c * dy
+    along, across = ego_frame(ego, others[:, 0], others[:, 1])
     return (along > AHEAD_M[0]) & (along < AHEAD_M[1]) & (np.abs(across) < AHEAD_LATERAL_M) & \
         (others[:, 2] < STANDING_MPS)
 

@@ -23,7 +23,6 @@ as the plan, the model itself (its constant-velocity predictions, its circles) i
 
 from __future__ import annotations
 
-import math
 import os
 from collections import Counter, deque
 from pathlib import Path
@@ -43,7 +42,7 @@ from crossroads.rl.model import IDCModel  # noqa: E402
 from crossroads.rl.sampler import observation_sample  # noqa: E402
 from crossroads.rl.networks import Adversary  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
-from probing import HORIZON, model_parser  # noqa: E402
+from probing import HORIZON, ego_frame, model_parser  # noqa: E402
 
 STANDING_MPS = 0.5
 SIDE_BAND_M = 2.0  # |longitudinal offset| below this: the other is beside the ego
@@ -51,8 +50,7 @@ SIDE_BAND_M = 2.0  # |longitudinal offset| below this: the other is beside the e
 
 def where(ego: np.ndarray, x: float, y: float) -> str:
     """front / side / rear of the other's centre in the ego's frame."""
-    c, s = math.cos(ego[4]), math.sin(ego[4])
-    ahead = c * (x - ego[0]) + s * (y - ego[1])
+    ahead, _ = ego_frame(ego, x, y)
     return "front" if ahead > SIDE_BAND_M else ("rear" if ahead < -SIDE_BAND_M else "side")
 
 
@@ -93,14 +91,13 @@ def main() -> None:
         for seed in run_seeds(spec, args.runs):
             obs = world.reset(seed)
             controller.reset(world.candidates)
-            recent: deque[Samples] = deque(maxlen=look_back_steps + 1)
-            context: deque[tuple[str, float]] = deque(maxlen=look_back_steps + 1)  # mode, vehicle ahead stood [s]
+            # per step: the state, the speed mode, how long the vehicle ahead had stood [s]
+            recent: deque[tuple[Samples, str, float]] = deque(maxlen=look_back_steps + 1)
             outcome = None
             while outcome is None:
                 decision = controller.decide(obs)
-                recent.append(observation_sample(world, obs, int(decision.path_index),
-                                                 decision.speed_mode == "stop"))
-                context.append((decision.speed_mode, obs.front_vehicle_stopped_s))
+                recent.append((observation_sample(world, obs, int(decision.path_index), decision.speed_mode == "stop"),
+                               decision.speed_mode, obs.front_vehicle_stopped_s))
                 obs, outcome = world.step(decision.action)
             outcomes[outcome.kind] += 1
             if outcome.kind != "collision":
@@ -110,8 +107,9 @@ def main() -> None:
             standing = "standing" if snap.speed[row] < STANDING_MPS else "moving"
             kinds[f"{where(obs.ego, snap.x[row], snap.y[row])}, {standing} {snap.kind[row]}"] += 1
             impact_speeds.append(float(obs.ego[2]))
-            modes.append(context[0])
-            plan, brake, adversarial = model_j_safe(model, controller, recent[0], networks.adversary)
+            before, mode, stood = recent[0]
+            modes.append((mode, stood))
+            plan, brake, adversarial = model_j_safe(model, controller, before, networks.adversary)
             plan_safe.append(plan)
             brake_safe.append(brake)
             adversary_safe.append(adversarial)

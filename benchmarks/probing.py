@@ -8,14 +8,25 @@ online decision, and look at some of the states on the way.
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from crossroads.idc.controller import Decision
 from crossroads.idc.decision import IdcController
 from crossroads.sim.world import Observation, World
 
 HORIZON = 25  # the paper's T, the training model's rollout length
+
+
+def ego_frame(ego: np.ndarray, x: Any, y: Any) -> tuple[Any, Any]:
+    """(along, across) [m] of the points (x, y) in the frame of ``ego`` (its position and heading φ)."""
+    c, s = math.cos(float(ego[4])), math.sin(float(ego[4]))
+    dx, dy = x - ego[0], y - ego[1]
+    return c * dx + s * dy, -s * dx + c * dy
 
 
 def model_parser(description: str, runs: int) -> argparse.ArgumentParser:

@@ -37,11 +37,10 @@ from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel, assemble  # noqa: E402
 from crossroads.sim.config import WorldConfig  # noqa: E402
 from crossroads.sim.ego import ego_step  # noqa: E402
-from crossroads.sim.traffic import TrafficDemand  # noqa: E402
+from crossroads.sim.traffic import NO_TRAFFIC  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 
 START_S_M = 5.0  # [m] the ego's start along the path
-NO_TRAFFIC = TrafficDemand(vehicles_per_hour=0, cyclists_per_hour=0, pedestrians_per_hour=0)
 
 
 def braking_distance(speed: float) -> float:
@@ -92,7 +91,8 @@ def main() -> None:
 
     print(f"{args.intersection} {path.id}: a car standing d m ahead (bumper to bumper), the ego at v, "
           f"pass mode, {args.steps / 10:g} s closed loop in the model; cells: smallest gap [m] or 'hit'")
-    print("full braking needs: " + ", ".join(f"{braking_distance(v):.1f} m from {v:g} m/s" for v in args.speeds))
+    stopping = {v: braking_distance(v) for v in args.speeds}
+    print("full braking needs: " + ", ".join(f"{d:.1f} m from {v:g} m/s" for v, d in stopping.items()))
     for policy_file in args.policy:
         networks, _ = load_networks(Path(policy_file))
         ego = ego_t.clone()
@@ -114,7 +114,7 @@ def main() -> None:
                 hits += g < 0.0
                 row.append(f"{'hit' if g < 0.0 else f'{g:.1f}':>8}")
             print(f"{v:<16g}" + "".join(row) + f"{table[(v, math.inf)][1]:>22.2f} m/s")
-        avoidable = [(v, d) for v in args.speeds for d in args.gaps if d > braking_distance(v)]
+        avoidable = [(v, d) for v in args.speeds for d in args.gaps if d > stopping[v]]
         avoidable_hits = sum(table[c][0] < 0.0 for c in avoidable)
         print(f"hit in {hits} of {len(args.speeds) * len(args.gaps)} cells; in {avoidable_hits} of the "
               f"{len(avoidable)} where full braking would have stopped in time")

@@ -26,10 +26,9 @@ from crossroads.evaluation.policies import load_controller
 from crossroads.network import catalogue
 from crossroads.network.model import TASKS
 from crossroads.sim.config import EgoStart, WorldConfig
-from crossroads.sim.traffic import TrafficDemand
+from crossroads.sim.traffic import NO_TRAFFIC
 from crossroads.sim.world import World
 
-NO_TRAFFIC = TrafficDemand(vehicles_per_hour=0, cyclists_per_hour=0, pedestrians_per_hour=0)
 TRACKING_TARGET_M = 0.2
 # The tightest curve the ego can follow at all (kinematic bicycle at full lock); a path bending
 # harder somewhere cannot be tracked exactly by any controller (the paper's Bezier puts such a hook

@@ -10,11 +10,10 @@ from crossroads.evaluation.episode import run_episode
 from crossroads.evaluation.scenario import load_scenario, to_world_config
 from crossroads.evaluation.trace import TraceRecorder
 from crossroads.idc.rule_based import RuleBasedController
-from crossroads.sim.traffic import TrafficDemand
+from crossroads.sim.traffic import NO_TRAFFIC
 from crossroads.sim.world import World
 from support import REPO_ROOT
 
-NO_TRAFFIC = TrafficDemand(vehicles_per_hour=0, cyclists_per_hour=0, pedestrians_per_hour=0)
 
 
 @pytest.mark.parametrize("task", ["left", "straight", "right"])

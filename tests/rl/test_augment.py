@@ -11,10 +11,8 @@ from crossroads.network import catalogue
 from crossroads.rl.augment import CAR_LENGTH_M, standing_car_copies, with_standing_car
 from crossroads.rl.buffer import Samples
 from crossroads.sim.config import WorldConfig
-from crossroads.sim.traffic import TrafficDemand
+from crossroads.sim.traffic import NO_TRAFFIC
 from crossroads.sim.world import World
-
-NO_TRAFFIC = TrafficDemand(vehicles_per_hour=0, cyclists_per_hour=0, pedestrians_per_hour=0)
 
 
 @pytest.fixture(scope="module")

@@ -10,11 +10,10 @@ import pytest
 
 from crossroads.network import catalogue
 from crossroads.sim.config import EgoStart, SignalStart, WorldConfig
-from crossroads.sim.traffic import TrafficDemand
+from crossroads.sim.traffic import NO_TRAFFIC, TrafficDemand
 from crossroads.sim.world import EGO_ID, World
 from crossroads.idc.rule_based import RuleBasedController
 
-NO_TRAFFIC = TrafficDemand(vehicles_per_hour=0, cyclists_per_hour=0, pedestrians_per_hour=0)
 
 
 @pytest.fixture(scope="module")

@@ -80,6 +80,10 @@ class TrafficDemand:
                 raise ValueError(f"TrafficDemand.{name} must be a finite number >= 0, got {value}")
 
 
+NO_TRAFFIC = TrafficDemand(vehicles_per_hour=0.0, cyclists_per_hour=0.0, pedestrians_per_hour=0.0)
+"""An empty road: the ego alone (tracking benchmarks, tests)."""
+
+
 @dataclass(frozen=True)
 class Departure:
     """One vehicle, cyclist or pedestrian of the plan."""
