@@ -29,28 +29,18 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from crossroads.constants import EGO_LENGTH_M, JERK_MAX  # noqa: E402
+from crossroads.constants import EGO_LENGTH_M  # noqa: E402
 from crossroads.idc.state import N_OTHERS, pad_participant, path_tensors  # noqa: E402
 from crossroads.network import catalogue  # noqa: E402
 from crossroads.rl.augment import CAR_LENGTH_M, CAR_WIDTH_M  # noqa: E402  (the training copies' car)
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel, assemble  # noqa: E402
 from crossroads.sim.config import WorldConfig  # noqa: E402
-from crossroads.sim.ego import ego_step  # noqa: E402
+from crossroads.sim.ego import braking_distance_m, ego_step  # noqa: E402
 from crossroads.sim.traffic import NO_TRAFFIC  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 
 START_S_M = 5.0  # [m] the ego's start along the path
-
-
-def braking_distance(speed: float) -> float:
-    """[m] travelled from ``speed`` with a = 0 until standstill under full jerk, then a = −3 m/s²."""
-    ego = np.array([0.0, 0.0, speed, 0.0, 0.0, 0.0, 0.0, 0.0])
-    for _ in range(1000):
-        if ego[2] <= 1e-6:
-            break
-        ego = ego_step(ego, np.array([0.0, -JERK_MAX]))
-    return float(ego[0])
 
 
 def main() -> None:
@@ -91,7 +81,7 @@ def main() -> None:
 
     print(f"{args.intersection} {path.id}: a car standing d m ahead (bumper to bumper), the ego at v, "
           f"pass mode, {args.steps / 10:g} s closed loop in the model; cells: smallest gap [m] or 'hit'")
-    stopping = {v: braking_distance(v) for v in args.speeds}
+    stopping = {v: float(braking_distance_m(v)) for v in args.speeds}
     print("full braking needs: " + ", ".join(f"{d:.1f} m from {v:g} m/s" for v, d in stopping.items()))
     for policy_file in args.policy:
         networks, _ = load_networks(Path(policy_file))

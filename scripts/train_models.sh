@@ -34,6 +34,10 @@
 # ALGOS picks the runs (default "apg dpg"); ALGOS=apg trains and exports APG alone. Run 6 (session
 # 6) did so, from run 5's APG, with the model's nominal floor (rl.model) new in that session:
 #   WARM=1 ALGOS=apg LR=1e-4,1e-5 ADV_LR=3e-5,1e-6 RULE_SHARE=0.25 make models ITERATIONS=3000
+# EXTRA sets any further config fields ("name=value ..."). Run 9 (session 7), from run 5's APG, with
+# the standing cars placed beyond the braking distance (rl.augment) and more of them and of empty scenes:
+#   WARM=1 ALGOS=apg LR=2e-4,1e-5 ADV_LR=3e-5,1e-6 RULE_SHARE=0.25 \
+#     EXTRA="standing_car_share=0.4 empty_share=0.2" make models ITERATIONS=8000
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -45,6 +49,8 @@ ADV_LR="${ADV_LR:-$LR}"
 SHORT_RUN=(--set "policy_lr=$LR" --set "value_lr=$LR" --set "adversary_lr=$ADV_LR"
            --set max_grad_norm=10 --set "rule_share=${RULE_SHARE:-0.5}")
 [ "${PAPER:-0}" = 1 ] && SHORT_RUN=()
+read -r -a EXTRA_PAIRS <<< "${EXTRA:-}"  # further config fields, "name=value name=value"
+for pair in "${EXTRA_PAIRS[@]}"; do SHORT_RUN+=(--set "$pair"); done
 THREADS="${THREADS:-1}"
 read -r -a ALGOS <<< "${ALGOS:-apg dpg}"
 for algo in "${ALGOS[@]}"; do

@@ -11,6 +11,7 @@ from crossroads.network import catalogue
 from crossroads.rl.augment import CAR_LENGTH_M, standing_car_copies, with_standing_car
 from crossroads.rl.buffer import Samples
 from crossroads.sim.config import WorldConfig
+from crossroads.sim.ego import braking_distance_m
 from crossroads.sim.traffic import NO_TRAFFIC
 from crossroads.sim.world import World
 
@@ -67,3 +68,33 @@ def test_copies_are_a_share_and_repeatable(straight_path) -> None:
     np.testing.assert_array_equal(every.others, again.others)
     gaps = np.hypot(*(every.others[:, 0, :2] - every.ego[:, :2]).T) - 0.5 * (EGO_LENGTH_M + CAR_LENGTH_M)
     assert np.all((gaps > 0.9) & (gaps < 30.1))
+
+
+def test_stoppable_copies_stand_beyond_the_braking_distance(straight_path) -> None:
+    samples = _samples(straight_path, 6)  # every ego at 5 m/s, a = 0
+    samples.ego[::2, 2] = 8.0
+    samples.ego[1, 7] = -3.0  # already braking: needs less room
+    bumper = standing_car_copies(samples, straight_path, 1.0, (1.0, 2.0), np.random.default_rng(3))
+    beyond = standing_car_copies(samples, straight_path, 1.0, (1.0, 2.0), np.random.default_rng(3), stoppable=True)
+    half = 0.5 * (EGO_LENGTH_M + CAR_LENGTH_M)
+
+    def gaps(copies: Samples) -> np.ndarray:
+        return np.hypot(*(copies.others[:, 0, :2] - copies.ego[:, :2]).T) - half
+
+    needed = braking_distance_m(samples.ego[:, 2], samples.ego[:, 7])
+    assert needed[0] == pytest.approx(14.09, abs=0.05) and needed[1] < braking_distance_m(5.0)
+    np.testing.assert_allclose(gaps(beyond), gaps(bumper) + needed, atol=0.05)  # same draws, moved on
+    assert np.all(gaps(beyond) > needed + 0.9)
+
+
+def test_braking_distance_follows_f_ego() -> None:
+    assert braking_distance_m(0.0) == 0.0
+    distances = braking_distance_m(np.array([2.0, 4.0, 6.0, 8.0]))
+    assert np.all(np.diff(distances) > 0)
+    # continuous: the jerk ramp to −3 m/s² (0.67 s), then v²/6 from the speed left; discrete f_ego
+    # lags a step twice (p moves with the old v, v with the old a), so it travels up to 2 steps more
+    v0, ramp = 8.0, 3.0 / 4.5
+    v1 = v0 - 0.5 * 4.5 * ramp**2
+    continuous = v0 * ramp - 4.5 * ramp**3 / 6 + v1**2 / 6.0
+    assert continuous < distances[3] < continuous + 2 * 0.1 * v0
+    assert braking_distance_m(8.0, -3.0) < distances[3] < braking_distance_m(8.0, 1.5)

@@ -139,7 +139,15 @@ class TrainConfig:
     vehicle standing in front, which the world shows only briefly in the pass mode. 0: none (runs
     before the option)."""
     standing_car_gap_m: tuple[float, float] = (0.5, 30.0)
-    """(choice) [m] bumper gap of that car ahead of the ego, drawn uniformly."""
+    """(choice) [m] bumper gap of that car ahead of the ego, drawn uniformly (beyond the braking
+    distance when ``standing_car_stoppable``)."""
+    standing_car_stoppable: bool = True
+    """(choice) Place that car the drawn gap *beyond* the distance full braking needs from the
+    state's speed and acceleration (``sim.ego.braking_distance_m``), so every copy can be stopped
+    for and its gradient says "brake". False: the gap is bumper to bumper (session 6's run 7), where
+    at 8 m/s every gap under 14 m is a collision no plan avoids and the plan that hurts least
+    swerves — run 7 tracked its straight paths worse (0.044 → 0.29 m) and still hit the queue test's
+    car from 6 and 8 m/s."""
     danger_share: float = 0.5
     """(choice) Share of every batch drawn from the buffer's dangerous states (J_safe of the
     policy's plan above ``danger_threshold``); 0 = the paper's uniform draws (rl.buffer)."""
@@ -244,6 +252,7 @@ class TrainConfig:
         data.setdefault("nominal_floor", False)  # likewise (sessions 2-5)
         data.setdefault("empty_share", 0.0)  # likewise (sessions 2-5): keeps their sampling draws
         data.setdefault("standing_car_share", 0.0)  # likewise (sessions 2-6)
+        data.setdefault("standing_car_stoppable", False)  # likewise (session 6's bumper gaps)
         return apply_overrides(cls(), data)
 
 

@@ -99,3 +99,19 @@ def _f_ego(xp: Any, px: Any, py: Any, vx: Any, vy: Any, phi: Any, omega: Any, de
     acc_next = xp.clip(acc + dt * d_acc, ACCEL_MIN, ACCEL_MAX)
     vx_next = xp.clip(vx_next, 0.0, None)
     return px_next, py_next, vx_next, vy_next, phi_next, omega_next, delta_next, acc_next
+
+
+def braking_distance_m(speed: Any, accel: Any = 0.0, max_steps: int = 400) -> np.ndarray:
+    """[m] f_ego travels on a straight road from ``speed`` [m/s] and acceleration ``accel`` [m/s²]
+    under full braking (Δa = −4.5 m/s³ until a = −3 m/s², then held) until it stands; broadcast over
+    arrays. Stepped through :func:`ego_step` itself, so it is the distance the model's own
+    discretisation needs, not the continuous formula's (they differ by a step's travel)."""
+    speed, accel = np.broadcast_arrays(np.asarray(speed, dtype=np.float64), np.asarray(accel, dtype=np.float64))
+    state = np.zeros(speed.shape + (8,))
+    state[..., 2], state[..., 7] = speed, np.clip(accel, ACCEL_MIN, ACCEL_MAX)
+    brake = np.broadcast_to(np.array([0.0, -JERK_MAX]), speed.shape + (2,))
+    for _ in range(max_steps):  # 8.33 m/s stops in ~35 steps; the cap only guards absurd inputs
+        if not np.any(state[..., 2] > 0.0):
+            break
+        state = np.where((state[..., 2] > 0.0)[..., None], ego_step(state, brake), state)
+    return state[..., 0]
