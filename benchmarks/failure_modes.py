@@ -16,9 +16,14 @@ IDC policy and prints:
   as APG trained before the nominal floor (rl.model): an adversary that predicts a milder scene
   than ξ ≡ 0 right before the collisions taught the policy that those scenes were safe.
 
+* J_π of the policy's plan against the model's own open-loop optimum from the same states (Adam on
+  the 25 actions, ``probing.open_loop_optimum``), and in how many of each the bodies' circles meet
+  within the horizon.
+
 When braking would have kept J_safe low and the policy's plan did not, the model saw the danger and
-the policy did not act on it: a training problem, not a modelling one. When braking scores as badly
-as the plan, the model itself (its constant-velocity predictions, its circles) is the suspect.
+the policy did not act on it: a training problem, not a modelling one. When the optimum of the
+model's cost itself collides, the cost or the model (its constant-velocity predictions, its circles)
+is the suspect; when the optimum is safe and much cheaper than the plan, the policy is.
 """
 
 from __future__ import annotations
@@ -32,17 +37,17 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from crossroads.constants import CONGESTION_STOP_S, JERK_MAX  # noqa: E402
+from crossroads.constants import CONGESTION_STOP_S, JERK_MAX, PENALTY_RHO  # noqa: E402
 from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
-from crossroads.rl.model import IDCModel  # noqa: E402
+from crossroads.rl.model import IDCModel, Rollout  # noqa: E402
 from crossroads.rl.sampler import observation_sample  # noqa: E402
 from crossroads.rl.networks import Adversary  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
-from probing import HORIZON, ego_frame, model_parser  # noqa: E402
+from probing import HORIZON, ego_frame, model_parser, open_loop_optimum  # noqa: E402
 
 STANDING_MPS = 0.5
 SIDE_BAND_M = 2.0  # |longitudinal offset| below this: the other is beside the ego
@@ -69,6 +74,24 @@ def model_j_safe(model: IDCModel, controller: IdcController, sample: Samples,
     return float(plan.j_safe[0]), float(stop.j_safe[0]), adversarial
 
 
+def print_optimum(model: IDCModel, controller: IdcController, states: list[Samples], look_back_s: float) -> None:
+    """The policy's plan against the model's own open-loop optimum from the same states: is the
+    cost itself content with a collision (then the optimum overlaps too), or is the policy far from
+    what its cost asks?"""
+    batch = to_batch(Samples.concat(states))
+    with torch.no_grad():
+        plan = model.rollout(batch, lambda s, _: controller.policy.mean_action(s), None, HORIZON)
+    best = open_loop_optimum(model, batch)
+
+    def j_pi(out: Rollout) -> np.ndarray:
+        return (out.j_track + PENALTY_RHO * out.j_safe).numpy()
+
+    print(f"{look_back_s:g} s before impact, J_π over {HORIZON} steps: policy's plan median {np.median(j_pi(plan)):.1f}, "
+          f"the model's open-loop optimum {np.median(j_pi(best)):.1f}; the bodies' circles meet within the "
+          f"horizon in {int((plan.overlap_m > 0).sum())} of {len(states)} plans and {int((best.overlap_m > 0).sum())} "
+          f"optima (optimum's closest approach: median {-np.median(best.overlap_m.numpy()):.2f} m between circles)")
+
+
 def main() -> None:
     parser = model_parser(__doc__.splitlines()[0], runs=50)
     parser.add_argument("--look-back", type=float, default=1.0, help="[s] before impact (≤ 5)")
@@ -86,6 +109,7 @@ def main() -> None:
     brake_safe: list[float] = []
     adversary_safe: list[float] = []
     modes: list[tuple[str, float]] = []  # (speed mode, vehicle ahead stood [s]) at the look-back
+    looked_back: list[Samples] = []  # the state at the look-back of every collision
     with World(to_world_config(spec, args.scenario.parent)) as world:
         model = IDCModel(path_tensors(world.candidates, dtype=torch.float32))
         for seed in run_seeds(spec, args.runs):
@@ -109,6 +133,7 @@ def main() -> None:
             impact_speeds.append(float(obs.ego[2]))
             before, mode, stood = recent[0]
             modes.append((mode, stood))
+            looked_back.append(before)
             plan, brake, adversarial = model_j_safe(model, controller, before, networks.adversary)
             plan_safe.append(plan)
             brake_safe.append(brake)
@@ -134,6 +159,7 @@ def main() -> None:
           f"{np.median(plan_a):.1f}, full braking median {np.median(brake_a):.1f}; braking predicted "
           f"safer in {int((brake_a < plan_a).sum())} of {len(plan_a)} "
           f"(J_safe < 1 with braking in {int((brake_a < 1.0).sum())})")
+    print_optimum(model, controller, looked_back, look_back_steps / 10)
     if networks.adversary is not None:
         adv_a = np.asarray(adversary_safe)
         print(f"the same states with the adversary's mean ξ (the scene APG trained on before the nominal floor): "

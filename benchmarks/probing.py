@@ -14,9 +14,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
+from crossroads.constants import JERK_MAX, PENALTY_RHO, STEER_RATE_MAX
 from crossroads.idc.controller import Decision
 from crossroads.idc.decision import IdcController
+from crossroads.rl.model import IDCModel, Rollout, StateBatch
 from crossroads.sim.world import Observation, World
 
 HORIZON = 25  # the paper's T, the training model's rollout length
@@ -51,3 +54,23 @@ def probed_states(world: World, controller: IdcController, seeds: Sequence[int],
                 yield obs, decision
             obs, outcome = world.step(decision.action)
             step += 1
+
+
+def open_loop_optimum(model: IDCModel, batch: StateBatch, steps: int = 250, lr: float = 0.05) -> Rollout:
+    """The model's own best plan from each state: Adam on the T actions of every state alone (no
+    policy), minimising J_π = J_track + ρ J_safe with ξ ≡ 0; the actions go through tanh into their
+    ranges so every step stays feasible. Zero actions to start. Its rollout (no gradient)."""
+    scale = torch.tensor([STEER_RATE_MAX, JERK_MAX], dtype=batch.ego.dtype)
+    raw = torch.zeros(batch.ego.shape[0], HORIZON, 2, dtype=batch.ego.dtype, requires_grad=True)
+    optimiser = torch.optim.Adam([raw], lr=lr)
+
+    def plan(_s: torch.Tensor, i: int) -> torch.Tensor:
+        return torch.tanh(raw[:, i]) * scale
+
+    for _ in range(steps):
+        out = model.rollout(batch, plan, None, HORIZON)
+        optimiser.zero_grad()
+        (out.j_track + PENALTY_RHO * out.j_safe).sum().backward()  # states are independent: a sum
+        optimiser.step()
+    with torch.no_grad():
+        return model.rollout(batch, plan, None, HORIZON)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from crossroads.idc.constraints import penalty, road_constraints, safety_constraints
+from crossroads.idc.constraints import SAFETY_MARGIN_M, penalty, road_constraints, safety_constraints
 from crossroads.idc.state import OTHERS, reference_point, tracking_error
 from crossroads.idc.utility import utility
 from crossroads.rl.model import IDCModel
@@ -30,6 +30,7 @@ def numpy_rollout(path_set, ego, others, kappa, path, stop, actions, xis, xi_pos
 
     s, _ = state(ego, others)
     j_track = j_safe = 0.0
+    overlap = -np.inf
     course = others
     for i in range(T):
         l, _ = utility(s, actions[i])
@@ -41,10 +42,12 @@ def numpy_rollout(path_set, ego, others, kappa, path, stop, actions, xis, xi_pos
             others = course.copy()
             others[:, :2] += xis[i][:, :2]
         s, ref = state(ego, others)
-        g = np.concatenate([safety_constraints(s), road_constraints(s, ref.x, ref.y, ref.heading)])
+        g_safe = safety_constraints(s)
+        g = np.concatenate([g_safe, road_constraints(s, ref.x, ref.y, ref.heading)])
         j_track += float(l)
         j_safe += float(penalty(g))
-    return j_track, j_safe
+        overlap = max(overlap, float(g_safe.max()) - SAFETY_MARGIN_M)
+    return j_track, j_safe, overlap
 
 
 @pytest.mark.parametrize("xi_positions", ["offset", "step"])
@@ -57,10 +60,12 @@ def test_rollout_matches_numpy_step_by_step(path_set, xi_positions) -> None:
     out = model.rollout(batch, lambda s, i: torch.as_tensor(actions[i]), lambda s, i: torch.as_tensor(xis[i]), T)
     assert out.j_safe.sum() > 0, "the test batch should violate some constraints"
     for b in range(6):
-        jt, js = numpy_rollout(path_set, batch.ego[b].numpy(), batch.others[b].numpy(), batch.kappa[b].numpy(),
+        jt, js, overlap = numpy_rollout(path_set, batch.ego[b].numpy(), batch.others[b].numpy(), batch.kappa[b].numpy(),
                                int(batch.path[b]), bool(batch.stop[b]), actions[:, b], xis[:, b], xi_positions)
         np.testing.assert_allclose(out.j_track[b].item(), jt, rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(out.j_safe[b].item(), js, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(out.overlap_m[b].item(), overlap, rtol=1e-9, atol=1e-9)
+    assert (out.overlap_m > 0).any() and (out.overlap_m < 0).any(), "the batch should hold both"
 
 
 def test_offset_positions_do_not_accumulate(path_set) -> None:

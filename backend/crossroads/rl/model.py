@@ -50,7 +50,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from crossroads.idc.constraints import penalty, road_constraints, safety_constraints
+from crossroads.idc.constraints import SAFETY_MARGIN_M, penalty, road_constraints, safety_constraints
 from crossroads.idc.state import N_OTHERS, PathTensors, reference_points_torch, tracking_error
 from crossroads.idc.utility import utility
 from crossroads.rl.buffer import StateBatch
@@ -68,6 +68,8 @@ class Rollout(NamedTuple):
     j_track: Tensor  # (B,) Σ l
     j_safe: Tensor  # (B,) Σ φ (unweighted; J_π = J_track + ρ J_safe)
     s0: Tensor  # (B, 108) the initial states (input of v_w)
+    overlap_m: Tensor  # (B,) deepest overlap of an ego circle with a participant's circle over the
+    # horizon [m], the safety margin left out (> 0: the bodies' circles meet); no gradient
 
 
 def assemble(ego: Tensor, track: Tensor, others: Tensor) -> Tensor:
@@ -100,6 +102,7 @@ class IDCModel:
         s = s0 = self.initial_states(batch)
         j_track = torch.zeros(ego.shape[0], dtype=ego.dtype, device=ego.device)
         j_safe = torch.zeros_like(j_track)
+        overlap = torch.full_like(j_track, -torch.inf)
         course = others  # "offset": each participant's trajectory before this step's ξ_x, ξ_y
         nominal = others  # the ξ ≡ 0 prediction, for the nominal floor
         floor = self.nominal_floor and disturb is not None
@@ -122,7 +125,8 @@ class IDCModel:
             g = torch.cat([g_safe, road_constraints(s, ref.x, ref.y, ref.heading)], dim=-1)
             j_track = j_track + l
             j_safe = j_safe + penalty(g)
-        return Rollout(j_track, j_safe, s0)
+            overlap = torch.maximum(overlap, g_safe.detach().amax(dim=-1) - SAFETY_MARGIN_M)
+        return Rollout(j_track, j_safe, s0, overlap)
 
 
 def _without_positions(xi: Tensor) -> Tensor:
