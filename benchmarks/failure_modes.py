@@ -18,7 +18,8 @@ IDC policy and prints:
 
 * J_π of the policy's plan against the model's own open-loop optimum from the same states (Adam on
   the 25 actions, ``probing.open_loop_optimum``), and in how many of each the bodies' circles meet
-  within the horizon.
+  within the horizon; and whether the plan still meets the circles when every slot but the closest
+  vehicle ahead is padded (is it the scene's clutter that hides the car ahead from the policy?).
 
 When braking would have kept J_safe low and the policy's plan did not, the model saw the danger and
 the policy did not act on it: a training problem, not a modelling one. When the optimum of the
@@ -40,7 +41,7 @@ import torch  # noqa: E402
 from crossroads.constants import CONGESTION_STOP_S, JERK_MAX, PENALTY_RHO  # noqa: E402
 from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.decision import IdcController  # noqa: E402
-from crossroads.idc.state import path_tensors  # noqa: E402
+from crossroads.idc.state import KIND_ROWS, pad_participant, path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel, Rollout  # noqa: E402
@@ -51,6 +52,7 @@ from probing import HORIZON, ego_frame, model_parser, open_loop_optimum  # noqa:
 
 STANDING_MPS = 0.5
 SIDE_BAND_M = 2.0  # |longitudinal offset| below this: the other is beside the ego
+CORRIDOR_HALF_WIDTH_M = 2.5  # [m] |lateral offset| of a vehicle "ahead" in the clutter test
 
 
 def where(ego: np.ndarray, x: float, y: float) -> str:
@@ -86,10 +88,34 @@ def print_optimum(model: IDCModel, controller: IdcController, states: list[Sampl
     def j_pi(out: Rollout) -> np.ndarray:
         return (out.j_track + PENALTY_RHO * out.j_safe).numpy()
 
+    simplified, ahead = closest_vehicle_ahead_only(Samples.concat(states))
+    with torch.no_grad():
+        alone = model.rollout(to_batch(simplified), lambda s, _: controller.policy.mean_action(s), None, HORIZON)
+    ahead_t = torch.from_numpy(ahead)
     print(f"{look_back_s:g} s before impact, J_π over {HORIZON} steps: policy's plan median {np.median(j_pi(plan)):.1f}, "
           f"the model's open-loop optimum {np.median(j_pi(best)):.1f}; the bodies' circles meet within the "
           f"horizon in {int((plan.overlap_m > 0).sum())} of {len(states)} plans and {int((best.overlap_m > 0).sum())} "
           f"optima (optimum's closest approach: median {-np.median(best.overlap_m.numpy()):.2f} m between circles)")
+    print(f"the {int(ahead.sum())} of those states with a vehicle ahead (|across| < {CORRIDOR_HALF_WIDTH_M:g} m), every "
+          f"other slot padded: the policy's plan meets its circles in {int(((alone.overlap_m > 0) & ahead_t).sum())} "
+          f"(as seen: {int(((plan.overlap_m > 0) & ahead_t).sum())})")
+
+
+def closest_vehicle_ahead_only(sample: Samples) -> tuple[Samples, np.ndarray]:
+    """``sample`` with every participant slot padded except the closest vehicle ahead of the ego
+    within ``CORRIDOR_HALF_WIDTH_M`` of its axis, which moves to the first slot; and which rows had
+    such a vehicle."""
+    others = np.empty_like(sample.others)
+    found = np.zeros(len(sample.ego), dtype=bool)
+    for b, ego in enumerate(sample.ego.astype(np.float64)):
+        others[b] = pad_participant(ego)
+        vehicles = sample.others[b, KIND_ROWS["vehicle"]].astype(np.float64)
+        along, across = ego_frame(ego, vehicles[:, 0], vehicles[:, 1])
+        ahead = np.flatnonzero((along > 0.0) & (np.abs(across) < CORRIDOR_HALF_WIDTH_M))
+        if len(ahead):
+            others[b, 0] = vehicles[ahead[np.argmin(along[ahead])]]
+            found[b] = True
+    return Samples(sample.ego, others, np.zeros_like(sample.kappa), sample.path, sample.stop), found
 
 
 def main() -> None:
