@@ -80,7 +80,8 @@ def print_optimum(model: IDCModel, controller: IdcController, states: list[Sampl
     """The policy's plan against the model's own open-loop optimum from the same states: is the
     cost itself content with a collision (then the optimum overlaps too), or is the policy far from
     what its cost asks?"""
-    batch = to_batch(Samples.concat(states))
+    seen = Samples.concat(states)
+    batch = to_batch(seen)
     with torch.no_grad():
         plan = model.rollout(batch, lambda s, _: controller.policy.mean_action(s), None, HORIZON)
     best = open_loop_optimum(model, batch)
@@ -88,7 +89,7 @@ def print_optimum(model: IDCModel, controller: IdcController, states: list[Sampl
     def j_pi(out: Rollout) -> np.ndarray:
         return (out.j_track + PENALTY_RHO * out.j_safe).numpy()
 
-    simplified, ahead = closest_vehicle_ahead_only(Samples.concat(states))
+    simplified, ahead = closest_vehicle_ahead_only(seen)
     with torch.no_grad():
         alone = model.rollout(to_batch(simplified), lambda s, _: controller.policy.mean_action(s), None, HORIZON)
     ahead_t = torch.from_numpy(ahead)

@@ -6,9 +6,9 @@
 #
 # APG and DPG train side by side, one sampling worker each and the machine's cores shared out as
 # torch threads (one each on a 2-core machine; set WORKERS=K THREADS=T to choose). Runs resume from
-# their newest checkpoint when started again, so an interrupted session goes on where it stopped. When both have finished, each
-# run's networks are exported with their model cards (config, iterations, wall time, hardware, final
-# losses, TAR) and the training curves are drawn beside them.
+# their newest checkpoint when started again, so an interrupted session goes on where it stopped.
+# When both have finished, each run's networks are exported with their model cards (config,
+# iterations, wall time, hardware, final losses, TAR) and the training curves are drawn beside them.
 #
 # The cosine annealing runs over ITERATIONS (the paper: 200 000, ~22 h per run on 2 CPU cores).
 # A run this short cannot use the paper's learning rates (1e-4 → 2e-6 policy, 3e-4 → 1e-6 value):
@@ -38,8 +38,8 @@
 # the standing cars placed beyond the braking distance (rl.augment) and more of them and of empty scenes:
 #   WARM=1 ALGOS=apg LR=2e-4,1e-5 ADV_LR=3e-5,1e-6 RULE_SHARE=0.25 \
 #     EXTRA="standing_car_share=0.4 empty_share=0.2" make models ITERATIONS=8000
-# and run 10 went on from run 9's end (INIT_DIR holds its exported apg.pt and card):
-#   WARM=1 ALGOS=apg INIT_DIR=var/run9 LR=1e-4,1e-5 ADV_LR=3e-5,1e-6 RULE_SHARE=0.25 \
+# and run 10 went on from run 9's end (kept as models/next/apg.pt with its card, not shipped):
+#   WARM=1 ALGOS=apg INIT_DIR=models/next LR=1e-4,1e-5 ADV_LR=3e-5,1e-6 RULE_SHARE=0.25 \
 #     EXTRA="standing_car_share=0.4 empty_share=0.2" make models ITERATIONS=4000
 set -euo pipefail
 cd "$(dirname "$0")/.."
