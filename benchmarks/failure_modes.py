@@ -42,7 +42,7 @@ from crossroads.constants import CONGESTION_STOP_S, JERK_MAX, PENALTY_RHO  # noq
 from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import KIND_ROWS, pad_participant, path_tensors  # noqa: E402
-from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
+from crossroads.rl.buffer import Samples, StateBatch, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel, Rollout  # noqa: E402
 from crossroads.rl.sampler import observation_sample  # noqa: E402
@@ -61,30 +61,27 @@ def where(ego: np.ndarray, x: float, y: float) -> str:
     return "front" if ahead > SIDE_BAND_M else ("rear" if ahead < -SIDE_BAND_M else "side")
 
 
-def model_j_safe(model: IDCModel, controller: IdcController, sample: Samples,
-                 adversary: Adversary | None) -> tuple[float, float, float]:
-    """J_safe from one state of (the policy's plan, full braking) with ξ ≡ 0, and of the policy's
-    plan with the adversary's mean ξ (NaN without an adversary)."""
-    batch = to_batch(sample)
-    brake = torch.tensor([[0.0, -JERK_MAX]], dtype=torch.float32)
+def plans(model: IDCModel, controller: IdcController, batch: StateBatch,
+          adversary: Adversary | None) -> tuple[Rollout, Rollout, Rollout | None]:
+    """The rollouts from every state of ``batch`` of the policy's plan and of full braking with
+    ξ ≡ 0, and of the policy's plan with the adversary's mean ξ (None without an adversary)."""
     own = lambda s, _: controller.policy.mean_action(s)  # noqa: E731
+    brake = torch.tensor([[0.0, -JERK_MAX]], dtype=torch.float32)
     with torch.no_grad():
         plan = model.rollout(batch, own, None, HORIZON)
         stop = model.rollout(batch, lambda s, _: brake.expand(s.shape[0], 2), None, HORIZON)
-        adversarial = (float("nan") if adversary is None else
-                       float(model.rollout(batch, own, lambda s, _: adversary.mean_action(s), HORIZON).j_safe[0]))
-    return float(plan.j_safe[0]), float(stop.j_safe[0]), adversarial
+        adversarial = (None if adversary is None else
+                       model.rollout(batch, own, lambda s, _: adversary.mean_action(s), HORIZON))
+    return plan, stop, adversarial
 
 
-def print_optimum(model: IDCModel, controller: IdcController, states: list[Samples], look_back_s: float) -> None:
-    """The policy's plan against the model's own open-loop optimum from the same states: is the
-    cost itself content with a collision (then the optimum overlaps too), or is the policy far from
-    what its cost asks?"""
-    seen = Samples.concat(states)
-    batch = to_batch(seen)
-    with torch.no_grad():
-        plan = model.rollout(batch, lambda s, _: controller.policy.mean_action(s), None, HORIZON)
-    best = open_loop_optimum(model, batch)
+def print_optimum(model: IDCModel, controller: IdcController, seen: Samples, plan: Rollout,
+                  look_back_s: float) -> None:
+    """The policy's ``plan`` from the states ``seen`` against the model's own open-loop optimum:
+    is the cost itself content with a collision (then the optimum overlaps too), or is the policy
+    far from what its cost asks? Then the clutter test: the plan from the same states with only
+    the closest vehicle ahead left."""
+    best = open_loop_optimum(model, to_batch(seen))
 
     def j_pi(out: Rollout) -> np.ndarray:
         return (out.j_track + PENALTY_RHO * out.j_safe).numpy()
@@ -95,7 +92,7 @@ def print_optimum(model: IDCModel, controller: IdcController, states: list[Sampl
     ahead_t = torch.from_numpy(ahead)
     print(f"{look_back_s:g} s before impact, J_π over {HORIZON} steps: policy's plan median {np.median(j_pi(plan)):.1f}, "
           f"the model's open-loop optimum {np.median(j_pi(best)):.1f}; the bodies' circles meet within the "
-          f"horizon in {int((plan.overlap_m > 0).sum())} of {len(states)} plans and {int((best.overlap_m > 0).sum())} "
+          f"horizon in {int((plan.overlap_m > 0).sum())} of {len(seen.ego)} plans and {int((best.overlap_m > 0).sum())} "
           f"optima (optimum's closest approach: median {-np.median(best.overlap_m.numpy()):.2f} m between circles)")
     print(f"the {int(ahead.sum())} of those states with a vehicle ahead (|across| < {CORRIDOR_HALF_WIDTH_M:g} m), every "
           f"other slot padded: the policy's plan meets its circles in {int(((alone.overlap_m > 0) & ahead_t).sum())} "
@@ -132,9 +129,6 @@ def main() -> None:
     outcomes: Counter[str] = Counter()
     kinds: Counter[str] = Counter()
     impact_speeds: list[float] = []
-    plan_safe: list[float] = []
-    brake_safe: list[float] = []
-    adversary_safe: list[float] = []
     modes: list[tuple[str, float]] = []  # (speed mode, vehicle ahead stood [s]) at the look-back
     looked_back: list[Samples] = []  # the state at the look-back of every collision
     with World(to_world_config(spec, args.scenario.parent)) as world:
@@ -161,10 +155,6 @@ def main() -> None:
             before, mode, stood = recent[0]
             modes.append((mode, stood))
             looked_back.append(before)
-            plan, brake, adversarial = model_j_safe(model, controller, before, networks.adversary)
-            plan_safe.append(plan)
-            brake_safe.append(brake)
-            adversary_safe.append(adversarial)
 
     print(f"policy {args.policy} on {args.scenario} ({args.runs} seeded runs)")
     print("outcomes: " + ", ".join(f"{k} {v}" for k, v in outcomes.most_common()))
@@ -181,14 +171,16 @@ def main() -> None:
     print(f"speed mode {look_back_steps / 10:g} s before impact: pass {n_pass}, stop {len(modes) - n_pass}; "
           f"in the pass mode behind a vehicle standing for at most the {CONGESTION_STOP_S:g} s before the "
           f"light logic stops: {fresh}")
-    plan_a, brake_a = np.asarray(plan_safe), np.asarray(brake_safe)
+    seen = Samples.concat(looked_back)
+    plan, brake, adversarial = plans(model, controller, to_batch(seen), networks.adversary)
+    plan_a, brake_a = plan.j_safe.numpy(), brake.j_safe.numpy()
     print(f"{look_back_steps / 10:g} s before impact, the model's J_safe over {HORIZON} steps: policy's plan median "
           f"{np.median(plan_a):.1f}, full braking median {np.median(brake_a):.1f}; braking predicted "
           f"safer in {int((brake_a < plan_a).sum())} of {len(plan_a)} "
           f"(J_safe < 1 with braking in {int((brake_a < 1.0).sum())})")
-    print_optimum(model, controller, looked_back, look_back_steps / 10)
-    if networks.adversary is not None:
-        adv_a = np.asarray(adversary_safe)
+    print_optimum(model, controller, seen, plan, look_back_steps / 10)
+    if adversarial is not None:
+        adv_a = adversarial.j_safe.numpy()
         print(f"the same states with the adversary's mean ξ (the scene APG trained on before the nominal floor): "
               f"policy's plan median {np.median(adv_a):.1f}; milder than ξ ≡ 0 in {int((adv_a < plan_a).sum())} "
               f"of {len(adv_a)}, harsher in {int((adv_a > plan_a).sum())}")

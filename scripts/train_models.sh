@@ -56,8 +56,10 @@ read -r -a EXTRA_PAIRS <<< "${EXTRA:-}"  # further config fields, "name=value na
 for pair in "${EXTRA_PAIRS[@]}"; do SHORT_RUN+=(--set "$pair"); done
 read -r -a ALGOS <<< "${ALGOS:-apg dpg}"
 # the learner is the bottleneck (session 7: 94 % of a core against the sampling worker's 12 %), so
-# a run alone gets every core: 2 torch threads trained APG at 2.07 it/s against 1.45 with one
-THREADS="${THREADS:-$(( $(nproc) / ${#ALGOS[@]} > 0 ? $(nproc) / ${#ALGOS[@]} : 1 ))}"
+# a run alone gets every core: with 2 torch threads APG's 250-iteration windows ran at a median 1.86
+# it/s against 1.45 with one (runs 9-10; some windows of both shared the CPU with measurements)
+THREADS="${THREADS:-$(( $(nproc) / ${#ALGOS[@]} ))}"
+(( THREADS > 0 )) || THREADS=1
 for algo in "${ALGOS[@]}"; do
     [ "$algo" = apg ] || [ "$algo" = dpg ] || { echo "ALGOS: unknown algorithm '$algo' (apg, dpg)" >&2; exit 2; }
 done

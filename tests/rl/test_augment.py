@@ -86,15 +86,3 @@ def test_stoppable_copies_stand_beyond_the_braking_distance(straight_path) -> No
     np.testing.assert_allclose(gaps(beyond), gaps(bumper) + needed, atol=0.05)  # same draws, moved on
     assert np.all(gaps(beyond) > needed + 0.9)
 
-
-def test_braking_distance_follows_f_ego() -> None:
-    assert braking_distance_m(0.0) == 0.0
-    distances = braking_distance_m(np.array([2.0, 4.0, 6.0, 8.0]))
-    assert np.all(np.diff(distances) > 0)
-    # continuous: the jerk ramp to −3 m/s² (0.67 s), then v²/6 from the speed left; discrete f_ego
-    # lags a step twice (p moves with the old v, v with the old a), so it travels up to 2 steps more
-    v0, ramp = 8.0, 3.0 / 4.5
-    v1 = v0 - 0.5 * 4.5 * ramp**2
-    continuous = v0 * ramp - 4.5 * ramp**3 / 6 + v1**2 / 6.0
-    assert continuous < distances[3] < continuous + 2 * 0.1 * v0
-    assert braking_distance_m(8.0, -3.0) < distances[3] < braking_distance_m(8.0, 1.5)

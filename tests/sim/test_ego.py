@@ -11,7 +11,7 @@ import torch
 from crossroads.constants import (
     ACCEL_MAX, ACCEL_MIN, DT_S, I_Z, JERK_MAX, K_F, K_R, L_F, L_R, MASS_KG, STEER_MAX, STEER_RATE_MAX,
 )
-from crossroads.sim.ego import clip_action, ego_step
+from crossroads.sim.ego import braking_distance_m, clip_action, ego_step
 
 
 def paper_step(s, u, dt=DT_S):
@@ -137,3 +137,16 @@ def test_single_state_fast_path_equals_the_batched_and_torch_paths() -> None:
         np.testing.assert_allclose(single, ego_step(state[None], action[None])[0], rtol=0, atol=1e-12)
         np.testing.assert_allclose(single, ego_step(torch.tensor(state), torch.tensor(action)).numpy(),
                                    rtol=0, atol=1e-12)
+
+
+def test_braking_distance_follows_f_ego() -> None:
+    assert braking_distance_m(0.0) == 0.0
+    distances = braking_distance_m(np.array([2.0, 4.0, 6.0, 8.0]))
+    assert np.all(np.diff(distances) > 0)
+    # continuous: the jerk ramp to −3 m/s² (0.67 s), then v²/6 from the speed left; discrete f_ego
+    # lags a step twice (p moves with the old v, v with the old a), so it travels up to 2 steps more
+    v0, ramp = 8.0, 3.0 / 4.5
+    v1 = v0 - 0.5 * 4.5 * ramp**2
+    continuous = v0 * ramp - 4.5 * ramp**3 / 6 + v1**2 / 6.0
+    assert continuous < distances[3] < continuous + 2 * 0.1 * v0
+    assert braking_distance_m(8.0, -3.0) < distances[3] < braking_distance_m(8.0, 1.5)

@@ -105,7 +105,8 @@ def braking_distance_m(speed: Any, accel: Any = 0.0, max_steps: int = 400) -> np
     """[m] f_ego travels on a straight road from ``speed`` [m/s] and acceleration ``accel`` [m/s²]
     under full braking (Δa = −4.5 m/s³ until a = −3 m/s², then held) until it stands; broadcast over
     arrays. Stepped through :func:`ego_step` itself, so it is the distance the model's own
-    discretisation needs, not the continuous formula's (they differ by a step's travel)."""
+    discretisation needs, not the continuous formula's (p moves with the old v and v with the old a,
+    so it travels up to two steps' distance more)."""
     speed, accel = np.broadcast_arrays(np.asarray(speed, dtype=np.float64), np.asarray(accel, dtype=np.float64))
     state = np.zeros(speed.shape + (8,))
     state[..., 2], state[..., 7] = speed, np.clip(accel, ACCEL_MIN, ACCEL_MAX)
