@@ -76,7 +76,7 @@ def main() -> None:
     with World(to_world_config(spec, args.scenario.parent)) as world:
         model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), xi_positions=xi_positions)
         for obs, decision in probed_states(world, controller, run_seeds(spec, args.runs), args.every):
-            sample = observation_sample(world, obs, int(decision.path_index), decision.speed_mode == "stop")
+            sample = observation_sample(obs, int(decision.path_index), decision.speed_mode == "stop")
             batch = to_batch(sample)
             with torch.no_grad():
                 xi_v = adversary.mean_action(model.initial_states(batch))[0, :, 2].numpy()

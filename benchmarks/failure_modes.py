@@ -141,7 +141,7 @@ def main() -> None:
             outcome = None
             while outcome is None:
                 decision = controller.decide(obs)
-                recent.append((observation_sample(world, obs, int(decision.path_index), decision.speed_mode == "stop"),
+                recent.append((observation_sample(obs, int(decision.path_index), decision.speed_mode == "stop"),
                                decision.speed_mode, obs.front_vehicle_stopped_s))
                 obs, outcome = world.step(decision.action)
             outcomes[outcome.kind] += 1

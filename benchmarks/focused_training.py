@@ -56,7 +56,7 @@ def drive(spec: ScenarioSpec, base_dir: Path, controller: IdcController, seeds: 
             while outcome is None:
                 decision = controller.decide(obs)
                 key = path_keys[(name, spec.task, int(decision.path_index))]
-                rows.append(observation_sample(world, obs, key, decision.speed_mode == "stop"))
+                rows.append(observation_sample(obs, key, decision.speed_mode == "stop"))
                 obs, outcome = world.step(decision.action)
             outcomes[outcome.kind] += 1
             every += rows

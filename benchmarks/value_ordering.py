@@ -29,7 +29,8 @@ from crossroads.idc.state import path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel  # noqa: E402
-from crossroads.rl.sampler import as_sample, others_and_curvature  # noqa: E402
+from crossroads.idc.observed import observed_others  # noqa: E402
+from crossroads.rl.sampler import as_sample  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 from probing import HORIZON, model_parser, probed_states  # noqa: E402
 
@@ -61,7 +62,7 @@ def main() -> None:
             raise SystemExit(f"{args.scenario}: one candidate path, so the value network has nothing to choose")
         for obs, decision in probed_states(world, controller, run_seeds(spec, args.runs), args.every):
             stop = decision.speed_mode == "stop"
-            others, kappa = others_and_curvature(world, obs)
+            others, kappa = observed_others(obs)
             batch = to_batch(Samples.concat([as_sample(obs.ego, others, kappa, p, stop) for p in range(n_paths)]))
             with torch.no_grad():  # every path's state in one rollout, one row each
                 rolled = model.rollout(batch, lambda s, _: controller.policy.mean_action(s), None, HORIZON)

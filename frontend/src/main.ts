@@ -102,7 +102,7 @@ async function init(): Promise<void> {
     api("/api/intersections"), api("/api/intersections/uploads"), api("/api/policies")]);
   setSources((intersections as Json[]).map(catalogueSource), (uploads as Json[]).map(uploadSource));
   $<HTMLSelectElement>("#policy").innerHTML = (policies as Json[])
-    .map((p) => `<option value="${esc(p.name)}">${esc(p.name)}${p.kind === "checkpoint" ? " (checkpoint)" : ""}</option>`).join("");
+    .map((p) => `<option value="${esc(p.name)}">${esc(p.name)}${p.kind !== "checkpoint" ? "" : p.shield ? " (checkpoint + safety shield)" : " (checkpoint)"}</option>`).join("");
   wire();
   await egoDefaults();
   await Promise.all([networkChanged("intersection"), refreshBatches()]);

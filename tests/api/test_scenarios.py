@@ -148,7 +148,10 @@ def test_policies_lists_rule_and_checkpoints_with_cards(client: TestClient) -> N
     policies = {p["name"]: p for p in client.get("/api/policies").json()}
     assert policies["rule"]["kind"] == "builtin"
     assert policies["fake"]["kind"] == "checkpoint" and policies["fake"]["file"] == "fake.pt"
-    assert policies["fake"]["card"] == {"algorithm": "APG", "iterations": 1}
+    assert policies["fake"]["card"] == {"algorithm": "APG", "iterations": 1} and not policies["fake"]["shield"]
+    shielded = policies["fake+shield"]
+    assert shielded["shield"] and shielded["file"] == "fake.pt" and shielded["card"] == policies["fake"]["card"]
+    assert list(policies).index("fake+shield") == list(policies).index("fake") + 1
 
 
 @pytest.mark.parametrize(("change", "loc", "words"), [

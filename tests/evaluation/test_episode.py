@@ -40,3 +40,21 @@ def test_episode_with_traffic_is_traced_and_reproducible() -> None:
     assert len(trace) == first.steps + 1
     assert trace.frame(0)["participants"], "the warm-up populated the intersection"
     assert first.min_distance_m > 0.0
+
+
+def test_the_shield_switching_on_and_off_is_an_event() -> None:
+    import torch
+
+    from crossroads.idc.decision import IdcController
+    from crossroads.rl.networks import make_networks
+
+    torch.manual_seed(0)
+    nets = make_networks("dpg", hidden_layers=5, hidden_units=256)
+    spec = load_scenario(REPO_ROOT / "scenarios" / "nominal" / "c_three_lane-left.yaml")
+    with World(replace(to_world_config(spec), warmup_s=20.0)) as world:
+        result = run_episode(world, IdcController(nets.policy, nets.value, shield=True), seed=4)
+        plain = run_episode(world, IdcController(nets.policy, nets.value), seed=4)
+    switches = [e["value"] for e in result.events if e["event"] == "shield_braking"]
+    assert switches and switches[0] is True  # the first event is the shield stepping in
+    assert all(a != b for a, b in zip(switches, switches[1:]))  # then on and off in turn
+    assert not any(e["event"] == "shield_braking" for e in plain.events)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from crossroads.constants import JERK_MAX, STEER_RATE_MAX
@@ -37,3 +38,30 @@ def test_value_picks_the_path_and_policy_gives_the_action() -> None:
             obs, outcome = world.step(decision.action)
             if outcome is not None:
                 break
+
+
+def test_the_shield_keeps_the_policys_action_or_brakes_with_its_steering() -> None:
+    torch.manual_seed(0)
+    nets = make_networks("dpg", hidden_layers=5, hidden_units=256)
+    plain = IdcController(nets.policy, nets.value)
+    shielded = IdcController(nets.policy, nets.value, shield=True)
+    config = WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", warmup_s=20.0)
+    braked = 0
+    with World(config) as world:
+        obs = world.reset(4)
+        plain.reset(world.candidates)
+        shielded.reset(world.candidates)
+        for _ in range(80):
+            own, checked = plain.decide(obs), shielded.decide(obs)
+            assert own.shield_braking is None and checked.shield_braking is not None
+            assert checked.path_index == own.path_index and checked.speed_mode == own.speed_mode
+            assert checked.action[0] == pytest.approx(own.action[0], abs=1e-6)
+            if checked.shield_braking:
+                braked += 1
+                assert checked.action[1] == -JERK_MAX
+            else:
+                assert checked.action[1] == pytest.approx(own.action[1], abs=1e-6)
+            obs, outcome = world.step(checked.action)
+            if outcome is not None:
+                break
+    assert braked > 0  # an untrained policy drives into the traffic: the shield has work

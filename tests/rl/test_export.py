@@ -41,6 +41,8 @@ def test_export_keeps_the_networks_and_writes_a_card(tmp_path: Path, path_set, m
     assert card["changed_from_defaults"]["hidden_units"]["default"] == 256
     assert "algo" not in card["changed_from_defaults"] and "out" not in card["changed_from_defaults"]
     assert load_controller(str(out)).name == "apg"  # drives as --policy models/apg.pt
+    shielded = load_controller(str(out) + "+shield")  # ... and as --policy models/apg.pt+shield
+    assert shielded.name == "apg+shield" and shielded.shield  # type: ignore[attr-defined]
 
     missing = CliRunner().invoke(app, ["export", str(tmp_path / "nowhere"), "-o", str(out)])
     assert missing.exit_code == 2 and "no checkpoint" in missing.output

@@ -43,6 +43,7 @@ class PolicyPublic(BaseModel):
     name: str = Field(description="what POST /batches takes as `policy`")
     kind: Literal["builtin", "checkpoint"]
     file: str | None = Field(None, description="checkpoint file, relative to the models directory")
+    shield: bool = Field(False, description="its actions pass the safety shield (idc.shield), not the paper's")
     size_bytes: int | None = None
     card: dict[str, Any] | None = Field(None, description="the model card, when one lies beside it")
 

@@ -29,7 +29,7 @@ class EpisodeResult:
     min_distance_m: float  # [m] closest centre distance to any other participant
     detail: str = ""
     collided_with: str | None = None  # vehicle | cyclist | pedestrian
-    events: list[dict[str, Any]] = field(default_factory=list)  # mode switches, path switches, ...
+    events: list[dict[str, Any]] = field(default_factory=list)  # mode, path and shield switches, ...
 
     @property
     def passed(self) -> bool:
@@ -65,6 +65,7 @@ def run_episode(
     events: list[dict[str, Any]] = []
     min_distance = _closest_distance(observation)
     last_mode = last_path = None
+    last_shield: bool | None = None
     outcome: Outcome | None = None
     steps = 0
     while outcome is None:
@@ -77,6 +78,11 @@ def run_episode(
             events.append({"t": round(observation.time_s, 2), "event": "path",
                            "value": int(decision.path_index)})
             last_path = decision.path_index
+        if decision.shield_braking is not None and decision.shield_braking != last_shield:
+            if decision.shield_braking or last_shield is not None:  # not the first "off" of a shielded run
+                events.append({"t": round(observation.time_s, 2), "event": "shield_braking",
+                               "value": bool(decision.shield_braking)})
+            last_shield = decision.shield_braking
         if recorder is not None:
             recorder.record(observation, decision)
         observation, outcome = world.step(decision.action)

@@ -26,6 +26,7 @@ class Decision:
     path_index: int  # index of the chosen candidate path
     speed_mode: SpeedMode
     path_values: FloatArray | None = None  # value of every candidate (IDC: v_w; lower is better)
+    shield_braking: bool | None = None  # a safety shield replaced the action by braking (None: no shield)
 
 
 class Controller(Protocol):

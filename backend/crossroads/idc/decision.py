@@ -20,27 +20,32 @@ from torch import nn
 
 from crossroads.idc.controller import Decision, SpeedMode
 from crossroads.idc.lights import choose_speed_mode
+from crossroads.idc.observed import observed_others
+from crossroads.idc.shield import shield_action
 from crossroads.idc.state import build_states, select_others
 from crossroads.planning import CandidatePath
 from crossroads.sim.world import Observation
 
 
 class IdcController:
-    """Value network picks the path, driving policy tracks it (mean action)."""
+    """Value network picks the path, driving policy tracks it (mean action); with ``shield``, the
+    safety shield (:mod:`crossroads.idc.shield`) checks that action (off by default: not the paper's)."""
 
-    def __init__(self, policy: nn.Module, value: nn.Module, name: str = "idc") -> None:
+    def __init__(self, policy: nn.Module, value: nn.Module, name: str = "idc", shield: bool = False) -> None:
         self.policy = policy.eval()
         self.value = value.eval()
         self.name = name
         self._dtype = next(value.parameters()).dtype
         self._candidates: tuple[CandidatePath, ...] = ()
+        self.shield = shield
 
     @classmethod
-    def from_checkpoint(cls, path: str | Path) -> IdcController:
+    def from_checkpoint(cls, path: str | Path, shield: bool = False) -> IdcController:
         from crossroads.rl.checkpoint import load_networks
 
         networks, _ = load_networks(Path(path))
-        return cls(networks.policy, networks.value, name=Path(path).stem)
+        name = Path(path).stem + ("+shield" if shield else "")
+        return cls(networks.policy, networks.value, name=name, shield=shield)
 
     def reset(self, candidates: Sequence[CandidatePath]) -> None:
         self._candidates = tuple(candidates)
@@ -66,8 +71,14 @@ class IdcController:
 
     def decide(self, observation: Observation) -> Decision:
         mode = self.speed_mode(observation)
-        others = select_others(observation.ego, observation.perceived.observations,
-                               observation.perceived.kinds)
+        if not self.shield:
+            others = select_others(observation.ego, observation.perceived.observations,
+                                   observation.perceived.kinds)
+        else:
+            others, kappa = observed_others(observation)  # f_other turns each by its route
         states = build_states(observation.ego, others, self._candidates, mode)
         best, action, values = self.decide_states(states)
-        return Decision(action, best, mode, values)
+        if not self.shield:
+            return Decision(action, best, mode, values)
+        verdict = shield_action(observation.ego, others, kappa, action)
+        return Decision(verdict.action, best, mode, values, shield_braking=verdict.braking)

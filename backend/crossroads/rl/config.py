@@ -148,6 +148,11 @@ class TrainConfig:
     at 8 m/s every gap under 14 m is a collision no plan avoids and the plan that hurts least
     swerves — run 7 tracked its straight paths worse (0.044 → 0.29 m) and still hit the queue test's
     car from 6 and 8 m/s."""
+    standing_car_neighbours: int = 0
+    """(choice) Up to this many more standing cars around each standing-car copy's car (drawn
+    uniformly in 0..N, rl.augment.queue_neighbours): one queued behind it, the rest in the
+    neighbouring lanes, so the car ahead is one of several standing cars in the slots, as in a real
+    queue. 0: none (runs before the option)."""
     danger_share: float = 0.5
     """(choice) Share of every batch drawn from the buffer's dangerous states (J_safe of the
     policy's plan above ``danger_threshold``); 0 = the paper's uniform draws (rl.buffer)."""
@@ -214,6 +219,8 @@ class TrainConfig:
             raise ValueError(f"danger_threshold: must be ≥ 0, got {self.danger_threshold}")
         if not 0.0 <= self.standing_car_share <= 1.0:
             raise ValueError(f"standing_car_share: must lie in [0, 1], got {self.standing_car_share}")
+        if not 0 <= self.standing_car_neighbours < 8:  # the 8 vehicle slots hold them and the car ahead
+            raise ValueError(f"standing_car_neighbours: must lie in 0..7, got {self.standing_car_neighbours}")
         low, high = self.standing_car_gap_m
         if not 0.0 <= low <= high:
             raise ValueError(f"standing_car_gap_m: need 0 <= low <= high, got {self.standing_car_gap_m}")

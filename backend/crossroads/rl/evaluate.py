@@ -22,7 +22,8 @@ from crossroads.idc.state import build_states
 from crossroads.idc.utility import utility
 from crossroads.rl.config import TrainConfig
 from crossroads.rl.networks import Networks
-from crossroads.rl.sampler import net_file, others_and_curvature, speed_mode
+from crossroads.idc.observed import observed_others
+from crossroads.rl.sampler import net_file, speed_mode
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.world import World
 
@@ -40,7 +41,7 @@ def evaluate_tar(nets: Networks, config: TrainConfig) -> dict[str, float]:
             obs = world.reset(config.tar_seed + r)
             cands = world.candidates
             for _ in range(config.tar_steps):
-                others, _ = others_and_curvature(world, obs)
+                others, _ = observed_others(obs)
                 mode = speed_mode(obs)
                 states = build_states(obs.ego, others, cands, mode)
                 with torch.no_grad():
@@ -49,7 +50,7 @@ def evaluate_tar(nets: Networks, config: TrainConfig) -> dict[str, float]:
                     u = nets.policy.mean_action(s[best: best + 1])[0].cpu().numpy().astype(np.float64)
                 l, _ = utility(states[best], u)
                 obs, outcome = world.step(u)
-                nxt_others, _ = others_and_curvature(world, obs)
+                nxt_others, _ = observed_others(obs)
                 nxt = build_states(obs.ego, nxt_others, [cands[best]], mode)[0]
                 phi = penalty(np.concatenate([safety_constraints(nxt), road_constraints(nxt)]))
                 total += float(l) + config.rho * float(phi)

@@ -47,7 +47,8 @@ import numpy as np
 
 from crossroads.constants import JERK_MAX, STEER_RATE_MAX
 from crossroads.idc.lights import choose_speed_mode
-from crossroads.idc.state import build_states, select_others
+from crossroads.idc.observed import observed_others
+from crossroads.idc.state import build_states
 from crossroads.planning import CandidatePath
 from crossroads.rl.augment import standing_car_copies
 from crossroads.rl.buffer import Samples
@@ -108,26 +109,16 @@ class PathSet:
 # --- one observation → one sample ------------------------------------------------------------------
 
 
-def others_and_curvature(world: World, obs: Observation) -> tuple[np.ndarray, np.ndarray]:
-    """(others16 (16, 6), κ16 (16,)) of an observation (module docstring)."""
-    seen = obs.perceived
-    others = select_others(obs.ego, seen.observations, seen.kinds)
-    kappa_rows = np.array(seen.observations, dtype=np.float64, copy=True).reshape(-1, 6)
-    kappa_rows[:, 2] = world.curvatures(obs.participants, seen.rows)
-    kappa = select_others(obs.ego, kappa_rows, seen.kinds)[:, 2]  # pads: speed 0 → κ 0
-    return others, kappa
-
-
 def as_sample(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, path_key: int, stop: bool) -> Samples:
     """One state as a one-row :class:`Samples` (what the buffer stores): the ego, the 16 others and
-    their curvatures (``others_and_curvature``), the path's index in the caller's path tensor, the mode."""
+    their curvatures (``idc.observed.observed_others``), the path's index in the caller's path tensor, the mode."""
     return Samples(ego[None].astype(np.float32), others[None].astype(np.float32), kappa[None].astype(np.float32),
                    np.array([path_key], np.int64), np.array([stop]))
 
 
-def observation_sample(world: World, obs: Observation, path_key: int, stop: bool) -> Samples:
-    """:func:`as_sample` of an observation of ``world``."""
-    return as_sample(obs.ego, *others_and_curvature(world, obs), path_key, stop)
+def observation_sample(obs: Observation, path_key: int, stop: bool) -> Samples:
+    """:func:`as_sample` of an observation."""
+    return as_sample(obs.ego, *observed_others(obs), path_key, stop)
 
 
 def scaled_demand(factor: float) -> TrafficDemand:
@@ -242,7 +233,7 @@ class EpisodeSampler:
                 rule.reset([path])
             noise_scale = cfg.explore_std * np.array([STEER_RATE_MAX, JERK_MAX])
             for _ in range(cfg.max_episode_steps):
-                others, kappa = others_and_curvature(world, obs)
+                others, kappa = observed_others(obs)
                 mode = speed_mode(obs)
                 rows.append(as_sample(obs.ego, others, kappa, key, mode == "stop"))
                 if rule is not None:
@@ -260,7 +251,8 @@ class EpisodeSampler:
         recorded = Samples.concat(rows)
         # drawn after the episode, so the episode's own draws stay those of runs without the option
         extra = standing_car_copies(recorded, path, cfg.standing_car_share, cfg.standing_car_gap_m, rng,
-                                    stoppable=cfg.standing_car_stoppable)
+                                    stoppable=cfg.standing_car_stoppable,
+                                    neighbours=cfg.standing_car_neighbours)
         return Samples.concat([recorded, extra])
 
 

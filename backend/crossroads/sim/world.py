@@ -16,7 +16,8 @@ from __future__ import annotations
 import math
 import shutil
 import tempfile
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal, NamedTuple
 
@@ -87,10 +88,25 @@ class Observation:
     abnormal_ids: frozenset[str]
     perceived: Perceived
     candidates: tuple[CandidatePath, ...]
+    # lane centre lines by SUMO lane id (the junction's internal lanes included): static map
+    # knowledge, as the candidates are, from which a controller can tell a participant's turning
+    # radius (:func:`participant_curvatures`)
+    lane_shapes: Mapping[str, FloatArray] = field(default_factory=dict)
 
     @property
     def past_stop_line(self) -> bool:
         return self.distance_to_stop_line_m < 0.0
+
+
+def participant_curvatures(lane_shapes: Mapping[str, FloatArray], snap: Snapshot, rows: np.ndarray) -> FloatArray:
+    """Signed curvature 1/R [1/m] of the participants at ``rows`` of ``snap``, from their lane and
+    position (0 on lanes ``lane_shapes`` does not describe, and for pedestrians): the R of f_other."""
+    kappa = np.zeros(len(rows))
+    for k, row in enumerate(rows):
+        shape = lane_shapes.get(str(snap.lane_id[row]))
+        if shape is not None and snap.kind[row] != "pedestrian":
+            kappa[k] = route_curvature(shape, float(snap.x[row]), float(snap.y[row]))
+    return kappa
 
 
 class _Around(NamedTuple):
@@ -329,6 +345,7 @@ class World:
             abnormal_ids=self._abnormal_ids,
             perceived=self._perceive(snap, around),
             candidates=self.candidates,
+            lane_shapes=self.lane_shapes,
         )
 
     def _collision(self, snap: Snapshot, around: _Around) -> int | None:
@@ -373,12 +390,7 @@ class World:
     def curvatures(self, snap: Snapshot, rows: np.ndarray) -> FloatArray:
         """Signed curvature 1/R [1/m] of the given participants, from their lane and position
         (0 on lanes the junction does not describe, and for pedestrians)."""
-        kappa = np.zeros(len(rows))
-        for k, row in enumerate(rows):
-            shape = self.lane_shapes.get(str(snap.lane_id[row]))
-            if shape is not None and snap.kind[row] != "pedestrian":
-                kappa[k] = route_curvature(shape, float(snap.x[row]), float(snap.y[row]))
-        return kappa
+        return participant_curvatures(self.lane_shapes, snap, rows)
 
     @property
     def stop_line_crossed_s(self) -> float | None:

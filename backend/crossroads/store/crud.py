@@ -56,16 +56,19 @@ class PolicyIdentity:
 
 def policy_identity(ref: str) -> PolicyIdentity:
     """The identity of ``ref`` (a built-in name or a checkpoint path; its card is read from a
-    ``<stem>.card.json`` or ``<stem>.json`` next to it when there is one)."""
-    from crossroads.evaluation.policies import BUILTIN_POLICIES, PolicyError, read_model_card
+    ``<stem>.card.json`` or ``<stem>.json`` next to it when there is one). A checkpoint with the
+    safety shield (``+shield``) is a policy of its own: name and hash carry the suffix."""
+    from crossroads.evaluation.policies import BUILTIN_POLICIES, SHIELD_SUFFIX, PolicyError, read_model_card, split_shield
 
     if ref in BUILTIN_POLICIES:
         return PolicyIdentity(ref, ref, "builtin", f"builtin:{ref}", None)
-    path = Path(ref)
+    file_ref, shield = split_shield(ref)
+    path = Path(file_ref)
     if not path.is_file():
-        raise PolicyError(f"policy checkpoint {ref!r} does not exist")
+        raise PolicyError(f"policy checkpoint {file_ref!r} does not exist")
     card = read_model_card(path)
-    return PolicyIdentity(path.stem, ref, "checkpoint", f"sha256:{file_sha256(path)}", card)
+    suffix = SHIELD_SUFFIX if shield else ""
+    return PolicyIdentity(path.stem + suffix, ref, "checkpoint", f"sha256:{file_sha256(path)}{suffix}", card)
 
 
 def _get_or_create(session: Session, model: type[Any], unique: Mapping[str, Any],

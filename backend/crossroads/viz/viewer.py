@@ -266,7 +266,8 @@ class Viewer:
         self.ego.visible = True
         signal = frame.get("signal", {})
         self.hud.text = (f"t {float(frame.get('t', 0.0)):.1f} s · {math.hypot(vx, vy):.1f} m/s · "
-                         f"{frame.get('speed_mode', 'none')} · {signal.get('light', '?')}")
+                         f"{frame.get('speed_mode', 'none')} · {signal.get('light', '?')}"
+                         + (" · shield brakes" if frame.get("shield_braking") else ""))
         if trail is None:
             i = int(frame.get("i", len(self._trail)))
             while self._trail and self._trail[-1][0] >= i:  # stepped back: forget the future
@@ -372,6 +373,7 @@ def frame_of_observation(observation: Any, decision: Any = None, index: int | No
         "signal": {"state": light.state, "light": light.light, "remaining_s": float(light.remaining_s)},
         "speed_mode": "none" if decision is None else str(decision.speed_mode),
         "path_index": -1 if decision is None else int(decision.path_index),
+        "shield_braking": None if decision is None else getattr(decision, "shield_braking", None),
         "ego": [float(v) for v in np.asarray(observation.ego).reshape(-1)],
         "participants": participants,
     }

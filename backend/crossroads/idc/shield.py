@@ -1,0 +1,146 @@
+"""A safety shield for the online decision: keep a way to brake clear of everyone.
+
+**(choice)** Not in the paper, and off unless asked for (a policy reference ending in ``+shield``,
+``evaluation.policies``): the bare policy is what APG and DPG are compared by.
+
+Why: 2 s before the collisions of the trained models on the nominal left turn, the training model
+itself (rl.model: f_ego, f_other with each participant's route curvature, ξ ≡ 0) already predicted
+the policy's plan to run into the other participant — the bodies' circles met within the T = 25
+steps in 24 of run 9's 37 collisions, while full braking kept J_safe under 1 in 27 of them
+(docs/measurements/why-the-models-crash.md §9). The policy does not act on a danger its model
+sees; the shield does.
+
+The check, every step, after the value network has chosen τ* and the policy its action u: the
+participants are predicted with f_other (ξ ≡ 0, each turning by its route's curvature, as the
+training model predicts them) over ``SHIELD_HORIZON_STEPS``, long enough for full braking from the
+pass-mode speed to stand still; the ego is rolled out with f_ego along two backups —
+
+* *go*: u now, then full braking (Δa = −4.5 m/s³ each step, the wheel held);
+* *brake*: full braking from now (u's steering rate for this step, then the wheel held).
+
+If *go* keeps the ego's circles ``SHIELD_CLEARANCE_M`` (the training constraints' safety margin)
+apart from every participant's in both futures of :func:`predicted_others`, u is the command: after
+it the ego can still stop clear. If not, and *brake* intrudes less deep, the command is braking's
+first action; otherwise u stands — where both intrude as deep (standing 2.8 m from a car in a
+narrow neighbouring lane) and where braking is worse (a participant closing from the side).
+
+What was measured against it, on 60 seeds of the nominal left turn that are not the evaluation's
+(base seed 777) with run 5's APG — passed / collisions / timeouts: this rule 16 / 27 / 16; counting
+only what the backups add to the intrusions of the present 11 / 38 / 10; braking whenever *brake*
+enters the clearance no sooner than *go* 10 / 35 / 13; ranking by the exterior penalty Σ max(0, g)²
+along each backup 12 / 27 / 19; no shield 8 / 52 / 0; the rule-based controller 24 / 3 / 33. Where
+neither backup can stop any more, both drive through the other body in the prediction and the
+deepest intrusions say little (the shield may then keep the policy's action); the shield is for
+not getting there.
+
+Checking the go-then-brake backup, not the policy's own plan over the next 2.5 s, matters: measured
+on the first 20 seeds of the nominal left turn with run 5's APG, a shield that braked only once the
+plan's circles met within 25 steps stepped in too late from 7-8 m/s and the ego still hit a
+standing car in 3 of them while braking. Pure numpy, vectorised over time for the participants
+(their prediction does not depend on the ego), so a check costs ~1 ms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from crossroads.constants import DT_S, JERK_MAX, TRACK_STATE_DIM
+from crossroads.idc.constraints import SAFETY_MARGIN_M, safety_constraints
+from crossroads.idc.state import KIND_ROWS, N_OTHERS, O_L, O_PHI, O_PX, O_PY, O_V, PHI, PX, PY
+from crossroads.sim.ego import ego_step
+
+OTHER_DECEL_MPS2 = 4.5  # [m/s²] how hard a participant may brake: SUMO's default passenger-car decel
+# [m] the clearance the backups must keep between circles: the training constraints' safety margin.
+# With none (the bodies' circles only) the ego braked from 3.6 m/s at the last moment the model
+# allowed and touched the standing car at 1.6 m/s (f_ego against SUMO's moves, noisy lengths)
+SHIELD_CLEARANCE_M = SAFETY_MARGIN_M
+SHIELD_HORIZON_STEPS = 40  # [0.1 s] full braking stops from 8.33 m/s within ~36 steps (f_ego, jerk-limited)
+FOLLOWER_HEADING_RAD = np.pi / 4  # [rad] a participant behind heading within this of the ego follows it
+PEDESTRIAN_SLOTS = np.arange(N_OTHERS) >= KIND_ROWS["pedestrian"].start
+_GO, _BRAKE = 0, 1  # the rows of the backups
+
+
+@dataclass(frozen=True)
+class ShieldVerdict:
+    """What the shield made of one step's action."""
+
+    action: np.ndarray  # (2,) the command: the policy's, or braking's first action
+    braking: bool  # the shield replaced the policy's action
+    backups: Backups  # what the decision was made from
+
+
+def predicted_others(others: np.ndarray, kappa: np.ndarray, steps: int) -> np.ndarray:
+    """The participants ``others`` (16, 6) with curvatures ``kappa`` (16,) over ``steps``: (2, steps,
+    16, 6), [0] f_other with ξ ≡ 0 (each keeps its speed), [1] the same with ξ_v braking each at
+    ``OTHER_DECEL_MPS2`` to a stand; row i after i + 1 steps. f_other's recursion (p moves with the
+    old v and φ, φ turns with the old v) summed in closed form over the steps at once: the same
+    numbers as stepping ``sim.other.other_step`` (tests), without a Python loop."""
+    o = np.asarray(others, np.float64)
+    k = np.asarray(kappa, np.float64)
+    n = np.arange(steps + 1)[:, None]  # (steps + 1, 1)
+    out = np.empty((2, steps) + o.shape)
+    for future, decel in enumerate((0.0, OTHER_DECEL_MPS2)):
+        v = np.maximum(o[:, O_V] - n * (decel * DT_S), 0.0) if decel else np.broadcast_to(o[:, O_V], (steps + 1, len(o)))
+        travelled = np.concatenate([np.zeros((1, len(o))), np.cumsum(DT_S * v[:-1], axis=0)])  # before step i
+        phi = o[:, O_PHI] + travelled * k  # (steps + 1, 16)
+        out[future, :, :, O_PX] = o[:, O_PX] + np.cumsum(DT_S * v[:-1] * np.cos(phi[:-1]), axis=0)
+        out[future, :, :, O_PY] = o[:, O_PY] + np.cumsum(DT_S * v[:-1] * np.sin(phi[:-1]), axis=0)
+        out[future, :, :, O_V] = v[1:]
+        out[future, :, :, O_PHI] = phi[1:]
+        out[future, :, :, O_L:] = o[:, O_L:]
+    return out
+
+
+def followers(ego: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """Which of ``others`` (16, 6) follow the ego (16,) bool: vehicles and cyclists behind its centre
+    heading its way within ``FOLLOWER_HEADING_RAD``. Kept at their speed, a follower 25 m back at
+    8 m/s drives into the braking ego in the prediction, and every backup looks as bad as the plan:
+    on the nominal left turn that hid the standing car ahead until the ego hit it. A follower is
+    predicted braking instead, as SUMO's car-following brakes for the ego."""
+    o = np.asarray(others, np.float64)
+    c, s = np.cos(ego[PHI]), np.sin(ego[PHI])
+    along = c * (o[:, O_PX] - ego[PX]) + s * (o[:, O_PY] - ego[PY])
+    same_way = np.cos(o[:, O_PHI] - ego[PHI]) > np.cos(FOLLOWER_HEADING_RAD)
+    return (along < 0.0) & same_way & ~PEDESTRIAN_SLOTS
+
+
+class Backups(NamedTuple):
+    """How the two backups fare against the predicted participants (module docstring)."""
+
+    go_overlap_m: float  # deepest intrusion into the clearance along *go* [m] (> 0: it is entered)
+    brake_overlap_m: float  # the same along *brake*
+
+
+def backups(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.ndarray,
+            steps: int = SHIELD_HORIZON_STEPS) -> Backups:
+    """*go* and *brake* from ``ego`` (8,) with the policy's ``action`` (2,) (module docstring),
+    against every participant of ``others`` (16, 6) turning by ``kappa`` (16,) in both futures."""
+    brake = np.array([0.0, -JERK_MAX])
+    egos = np.empty((steps, 2, 8))
+    for row, first in ((_GO, action), (_BRAKE, (action[0], -JERK_MAX))):
+        state = ego_step(np.asarray(ego, np.float64), np.asarray(first, np.float64))  # (8,): f_ego on floats
+        for i in range(steps):
+            egos[i, row] = state
+            state = ego_step(state, brake)
+    moved = predicted_others(np.asarray(others, np.float64), np.asarray(kappa, np.float64), steps)
+    follows = followers(ego, others)
+    moved[0][:, follows] = moved[1][:, follows]  # a follower brakes when the ego does
+    futures = len(moved)
+    states = np.concatenate([np.broadcast_to(egos, (futures, steps, 2, 8)), np.zeros((futures, steps, 2, TRACK_STATE_DIM)),
+                             np.broadcast_to(moved.reshape(futures, steps, 1, -1), (futures, steps, 2, moved[0, 0].size))],
+                            axis=-1)
+    deepest = safety_constraints(states, SHIELD_CLEARANCE_M).max(axis=(0, 1, 3))  # (2,): worse future, all steps
+    return Backups(float(deepest[_GO]), float(deepest[_BRAKE]))
+
+
+def shield_action(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.ndarray) -> ShieldVerdict:
+    """The command for a step whose policy action is ``action`` (module docstring)."""
+    b = backups(ego, others, kappa, action)
+    braking = b.go_overlap_m > 0.0 and b.brake_overlap_m < b.go_overlap_m
+    command = np.asarray(action, dtype=np.float64).copy()
+    if braking:
+        command[1] = -JERK_MAX
+    return ShieldVerdict(command, braking, b)

@@ -1,0 +1,106 @@
+"""The safety shield (idc.shield): its predictions, its backups and when it brakes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from crossroads.constants import JERK_MAX
+from crossroads.idc.constraints import EGO_CIRCLE_OFFSET_M, EGO_RADIUS_M
+from crossroads.idc.shield import (
+    OTHER_DECEL_MPS2,
+    SHIELD_CLEARANCE_M,
+    backups,
+    followers,
+    predicted_others,
+    shield_action,
+)
+from crossroads.idc.state import N_OTHERS, pad_participant
+from crossroads.sim.ego import braking_distance_m
+from crossroads.sim.other import other_step
+
+CAR_L, CAR_W = 5.0, 1.8
+EGO = np.array([0.0, 0.0, 8.0, 0.0, 0.0, 0.0, 0.0, 0.0])  # 8 m/s due east, a = 0
+ACCELERATE = np.array([0.0, JERK_MAX])
+
+
+def _scene(*cars: tuple[float, float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """x_other with the given cars (x, y, v, φ) in the first vehicle slots, the rest padded; κ = 0."""
+    others = np.tile(pad_participant(EGO), (N_OTHERS, 1))
+    for k, (x, y, v, phi) in enumerate(cars):
+        others[k] = [x, y, v, phi, CAR_L, CAR_W]
+    return others, np.zeros(N_OTHERS)
+
+
+def test_the_predictions_are_f_other_stepped() -> None:
+    rng = np.random.default_rng(1)
+    others = np.column_stack([rng.uniform(-30, 30, N_OTHERS), rng.uniform(-30, 30, N_OTHERS), rng.uniform(0, 8, N_OTHERS),
+                              rng.uniform(-3, 3, N_OTHERS), np.full(N_OTHERS, 4.8), np.full(N_OTHERS, 1.8)])
+    kappa = rng.uniform(-0.1, 0.1, N_OTHERS)
+    got = predicted_others(others, kappa, 40)
+    keep = brake = others
+    for i in range(40):
+        keep = other_step(keep, kappa)
+        xi = np.zeros((N_OTHERS, 4))
+        xi[:, 2] = -np.minimum(brake[:, 2], OTHER_DECEL_MPS2 * 0.1)
+        brake = other_step(brake, kappa, xi)
+        np.testing.assert_allclose(got[0, i], keep, atol=1e-9)
+        np.testing.assert_allclose(got[1, i], brake, atol=1e-9)
+    assert np.all(got[1, -1, :, 2] == 0.0)  # 8 m/s at 4.5 m/s² stands within 2 s
+
+
+def _brake_overlap(gap_centre_m: float) -> float:
+    return backups(EGO, *_scene((gap_centre_m, 0.0, 0.0, 0.0)), ACCELERATE).brake_overlap_m
+
+
+def test_braking_now_stops_where_full_braking_stops() -> None:
+    # the nearest standing car braking-now keeps clear of: f_ego's braking distance plus the
+    # circles' reach (ego front circle + car rear circle + the clearance), found by bisection
+    lo, hi = 5.0, 40.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _brake_overlap(mid) > 0.0 else (lo, mid)
+    reach = EGO_CIRCLE_OFFSET_M + EGO_RADIUS_M + (CAR_L - CAR_W) / 2 + CAR_W / 2 + SHIELD_CLEARANCE_M
+    assert hi == pytest.approx(float(braking_distance_m(8.0, 0.0)) + reach, abs=0.05)
+
+
+def test_it_brakes_when_only_braking_now_keeps_clear_and_not_otherwise() -> None:
+    stop_now = float(braking_distance_m(8.0, 0.0))
+    reach = EGO_CIRCLE_OFFSET_M + EGO_RADIUS_M + (CAR_L - CAR_W) / 2 + CAR_W / 2 + SHIELD_CLEARANCE_M
+    tight = _scene((stop_now + reach + 0.1, 0.0, 0.0, 0.0))
+    verdict = shield_action(EGO, *tight, ACCELERATE)
+    assert verdict.backups.go_overlap_m > 0.0 >= verdict.backups.brake_overlap_m
+    assert verdict.backups.brake_overlap_m <= 0.0
+    assert verdict.braking and verdict.action[1] == -JERK_MAX and verdict.action[0] == ACCELERATE[0]
+    far = shield_action(EGO, *_scene((60.0, 0.0, 0.0, 0.0)), ACCELERATE)
+    assert not far.braking and np.array_equal(far.action, ACCELERATE)
+
+
+def test_cars_in_the_next_lanes_and_followers_do_not_make_it_brake() -> None:
+    beside = _scene((10.0, 3.5, 0.0, 0.0), (25.0, -3.5, 0.0, 0.0))  # a standing queue one lane over
+    assert not shield_action(EGO, *beside, ACCELERATE).braking
+    follower = _scene((-25.0, 0.0, 8.0, 0.0))  # 25 m behind at 8 m/s: it brakes when the ego does
+    assert followers(EGO, follower[0])[0]
+    kept = backups(EGO, *follower, ACCELERATE)
+    assert kept.go_overlap_m <= 0.0 and kept.brake_overlap_m <= 0.0
+    oncoming = _scene((-25.0, 0.0, 8.0, np.pi))  # behind but driving away the other way: no follower
+    assert not followers(EGO, oncoming[0])[0]
+
+
+def test_a_car_driving_away_ahead_is_no_reason_to_brake_but_one_braking_ahead_is() -> None:
+    assert not shield_action(EGO, *_scene((20.0, 0.0, 8.0, 0.0)), ACCELERATE).braking
+    # 8 m/s, 14 m ahead (centres): if it brakes hard, the ego accelerating now cannot stop behind it
+    assert shield_action(EGO, *_scene((14.0, 0.0, 8.0, 0.0)), ACCELERATE).braking
+
+
+def test_standing_inside_the_clearance_already_is_no_reason_to_brake_for_ever() -> None:
+    standing = EGO.copy()
+    standing[2] = 0.0
+    narrow = _scene((0.0, 2.8, 0.0, 0.0))  # a car alongside in a narrow neighbouring lane: inside the clearance
+    hold = np.zeros(2)
+    verdict = shield_action(standing, *narrow, hold)
+    assert verdict.backups.go_overlap_m > 0.0 and not verdict.braking
+    # creeping at the queued car 0.6 m ahead (bumpers) makes it worse: that it stops
+    queued = _scene((0.5 * (4.8 + CAR_L) + 0.6, 0.0, 0.0, 0.0))
+    assert shield_action(standing, *queued, np.array([0.0, JERK_MAX])).braking
+    assert not shield_action(standing, *queued, np.array([0.0, -JERK_MAX])).braking
