@@ -1,7 +1,7 @@
 """Why a trained policy fails: its collisions classified, and what its own model predicted before them.
 
     .venv/bin/python benchmarks/failure_modes.py scenarios/nominal/c_three_lane-left.yaml \
-        --policy models/apg.pt [--runs 50]
+        --policy models/apg.pt [--runs 50]      (models/apg.pt+shield: with the safety shield)
 
 Runs the scenario's first N seeded episodes (the seeds of ``crossroads evaluate``) with a trained
 IDC policy and prints:
@@ -39,6 +39,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from crossroads.constants import CONGESTION_STOP_S, JERK_MAX, PENALTY_RHO  # noqa: E402
+from crossroads.evaluation.policies import split_shield  # noqa: E402
 from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import KIND_ROWS, pad_participant, path_tensors  # noqa: E402
@@ -124,8 +125,9 @@ def main() -> None:
     look_back_steps = max(1, min(50, round(args.look_back / 0.1)))
 
     spec = load_scenario(args.scenario)
-    networks, _ = load_networks(Path(args.policy))
-    controller = IdcController(networks.policy, networks.value, name=Path(args.policy).stem)
+    checkpoint, shield = split_shield(args.policy)  # models/apg.pt+shield: with the safety shield
+    networks, _ = load_networks(Path(checkpoint))
+    controller = IdcController(networks.policy, networks.value, name=Path(checkpoint).stem, shield=shield)
     outcomes: Counter[str] = Counter()
     kinds: Counter[str] = Counter()
     impact_speeds: list[float] = []
