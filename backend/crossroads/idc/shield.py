@@ -11,9 +11,11 @@ steps in 24 of run 9's 37 collisions, while full braking kept J_safe under 1 in 
 sees; the shield does.
 
 The check, every step, after the value network has chosen τ* and the policy its action u: the
-participants are predicted with f_other (ξ ≡ 0, each turning by its route's curvature, as the
-training model predicts them) over ``SHIELD_HORIZON_STEPS``, long enough for full braking from the
-pass-mode speed to stand still; the ego is rolled out with f_ego along two backups —
+participants the sensors cover are predicted with f_other (each turning by its route's curvature, as
+the training model predicts them) over ``SHIELD_HORIZON_STEPS``, long enough for full braking from the
+pass-mode speed to stand still, in two futures: each keeping its speed, and each braking hard to a
+stand (a follower — behind the ego, heading its way — brakes in both, :func:`followers`). The ego
+is rolled out with f_ego along two backups —
 
 * *go*: u now, then full braking (Δa = −4.5 m/s³ each step, the wheel held);
 * *brake*: full braking from now (u's steering rate for this step, then the wheel held).
