@@ -207,3 +207,21 @@ def test_adapters_for_world_objects() -> None:
     assert [p["abnormal"] for p in f0["participants"]] == [True, False]
     assert [p["obs"] for p in f0["participants"]] == [None, [2.0, 1.0, 1.0, 0.0, 0.3, 0.5]]
     assert f1["speed_mode"] == "none" and f1["path_index"] == -1  # the final, undecided frame
+
+
+def test_the_shield_is_recorded_and_older_traces_read_without_it(tmp_path: Path) -> None:
+    rec = TraceRecorder()
+    rec.header(scenario="tiny", seed=1, net="/nets/x.net.xml", junction="J1", task="left")
+    for i, braking in enumerate((None, False, True)):
+        rec.record(time_s=0.1 * i, signal_state=STATE_A, light="green", light_remaining_s=5.0, speed_mode="pass",
+                   path_index=0, ego=np.zeros(8), action=[0.0, -4.5], shield_braking=braking)
+    trace = rec.trace()
+    assert [trace.frame(i)["shield_braking"] for i in range(3)] == [None, False, True]
+    loaded = Trace.load(trace.save(tmp_path / "shield.npz"))
+    assert loaded == trace
+    old = tmp_path / "old.npz"  # as written before the shield was recorded
+    arrays = {k: v for k, v in trace.arrays.items() if k != "shield"}
+    header = np.frombuffer(json.dumps(trace.header).encode("utf-8"), dtype=np.uint8)
+    np.savez_compressed(old, header=header, **arrays)
+    assert [Trace.load(old).frame(i)["shield_braking"] for i in range(3)] == [None, None, None]
+    assert small_recorder().trace().frame(0)["shield_braking"] is None  # no shield given

@@ -218,3 +218,16 @@ def test_each_tab_gets_its_own_player(trace_file: Path, tmp_path: Path) -> None:
             assert pa.trace.header["scenario"] != "second"
     finally:
         app.stop()
+
+
+def test_the_hud_says_when_the_shield_brakes(server: viser.ViserServer, trace: Trace) -> None:
+    viewer = Viewer(server, junction_of(trace), trace.header["candidates"])
+    try:
+        viewer.show_frame({**_frame(0, []), "shield_braking": True})
+        assert "shield brakes" in viewer.hud.text
+        viewer.show_frame({**_frame(1, []), "shield_braking": False})
+        assert "shield" not in viewer.hud.text
+        viewer.show_frame(_frame(2, []))  # frames of traces and controllers without a shield
+        assert "shield" not in viewer.hud.text
+    finally:
+        viewer.remove()

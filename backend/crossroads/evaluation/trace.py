@@ -21,6 +21,8 @@ light                  (T,)          uint8      ego's light: index into ``LIGHTS
 light_remaining_s      (T,)          float32    [s] until the ego's light changes
 speed_mode             (T,)          uint8      index into ``SPEED_MODES`` ("none": no decision)
 path_index             (T,)          int16      chosen candidate (-1: no decision)
+shield                 (T,)          int8       the safety shield: 1 braking, 0 not, -1 no shield or no decision
+                                                (optional: traces written before it read as all -1)
 ego                    (T, 8)        float32    [p_x m, p_y m, v_x m/s, v_y m/s, φ rad, ω rad/s, δ rad, a m/s²]
 action                 (T, 2)        float32    [Δδ rad/s, Δa m/s³]; NaN when no decision
 offsets                (T+1,)        int64      row range of each step
@@ -65,6 +67,8 @@ PARTICIPANT_FLOATS = ("x", "y", "heading", "speed", "length", "width")
 STEP_KEYS = ("time_s", "signal", "light", "light_remaining_s", "speed_mode", "path_index",
              "ego", "action", "offsets")
 ROW_KEYS = ("pid", "kind", *PARTICIPANT_FLOATS, "abnormal", "perceived", "obs")
+SHIELD_KEY = "shield"  # optional per-step array (the module docstring's table)
+NO_SHIELD = -1
 
 
 def _code(table: Sequence[str], value: str, what: str) -> int:
@@ -122,7 +126,7 @@ class Trace:
         """Step ``i`` as a JSON-ready dict (floats rounded to ``JSON_DECIMALS``)::
 
             {"i", "t", "signal": {"state", "light", "remaining_s"}, "speed_mode", "path_index",
-             "ego": [8], "action": [2] | [None, None],
+             "shield_braking": bool | None, "ego": [8], "action": [2] | [None, None],
              "participants": [{"id", "kind", "x", "y", "heading", "speed", "length", "width",
                                "abnormal", "perceived", "obs": [6] | None}, ...]}
         """
@@ -162,6 +166,7 @@ class Trace:
             },
             "speed_mode": SPEED_MODES[a["speed_mode"][i]],
             "path_index": int(a["path_index"][i]),
+            "shield_braking": None if a[SHIELD_KEY][i] == NO_SHIELD else bool(a[SHIELD_KEY][i]),
             "ego": _rounded(a["ego"][i]),
             "action": _rounded(a["action"][i]),
             "participants": participants,
@@ -200,6 +205,8 @@ class Trace:
         missing = {"ids", "signal_states", *STEP_KEYS, *ROW_KEYS} - set(arrays)
         if missing:
             raise ValueError(f"{path}: not a trace, missing arrays {sorted(missing)}")
+        if SHIELD_KEY not in arrays:  # written before the shield was recorded
+            arrays[SHIELD_KEY] = np.full(len(arrays["time_s"]), NO_SHIELD, np.int8)
         return cls(header, arrays)
 
     def nbytes(self) -> int:
@@ -243,7 +250,7 @@ class TraceRecorder:
     _header: dict[str, Any] = field(default_factory=dict)
     _ids: dict[str, int] = field(default_factory=dict)
     _signals: dict[str, int] = field(default_factory=dict)
-    _steps: dict[str, list[Any]] = field(default_factory=lambda: {k: [] for k in STEP_KEYS[:-1]})
+    _steps: dict[str, list[Any]] = field(default_factory=lambda: {k: [] for k in (*STEP_KEYS[:-1], SHIELD_KEY)})
     _rows: dict[str, list[NDArray[Any]]] = field(default_factory=lambda: {k: [] for k in ROW_KEYS})
     _counts: list[int] = field(default_factory=list)
 
@@ -296,6 +303,8 @@ class TraceRecorder:
         * ``light_remaining_s`` float [s]: until the ego's light changes.
         * ``speed_mode`` str: ``"pass" | "stop"``; ``"none"`` (or None) when nothing was decided.
         * ``path_index`` int: index of the chosen candidate path, -1 for none.
+        * ``shield_braking`` bool or None (default): the safety shield braked this step; None when
+          the controller has no shield (or nothing was decided).
         * ``ego`` (8,): ``[p_x m, p_y m, v_x m/s, v_y m/s, φ rad, ω rad/s, δ rad, a m/s²]``.
         * ``action`` (2,) or None: ``[Δδ rad/s, Δa m/s³]``; None is stored as NaN.
         * ``ids`` (n,) str; ``kinds`` (n,) str in ``"vehicle" | "cyclist" | "pedestrian"``.
@@ -315,6 +324,7 @@ class TraceRecorder:
 
     def _record(self, *, time_s: float, signal_state: str, light: str, light_remaining_s: float,
                 speed_mode: str | None, path_index: int, ego: ArrayLike, action: ArrayLike | None,
+                shield_braking: bool | None = None,
                 ids: ArrayLike = (), kinds: ArrayLike = (), x: ArrayLike = (), y: ArrayLike = (),
                 heading: ArrayLike = (), speed: ArrayLike = (), length: ArrayLike = (),
                 width: ArrayLike = (), abnormal: ArrayLike | None = None,
@@ -358,6 +368,7 @@ class TraceRecorder:
         s["light_remaining_s"].append(float(light_remaining_s))
         s["speed_mode"].append(_code(SPEED_MODES, speed_mode or "none", "speed_mode"))
         s["path_index"].append(int(path_index))
+        s[SHIELD_KEY].append(NO_SHIELD if shield_braking is None else int(bool(shield_braking)))
         s["ego"].append(ego_a)
         s["action"].append(act)
         r = self._rows
@@ -410,6 +421,7 @@ class TraceRecorder:
             "light_remaining_s": np.array(s["light_remaining_s"], np.float32),
             "speed_mode": np.array(s["speed_mode"], np.uint8),
             "path_index": np.array(s["path_index"], np.int16),
+            SHIELD_KEY: np.array(s[SHIELD_KEY], np.int8),
             "ego": np.array(s["ego"], np.float32).reshape(n_steps, EGO_STATE_DIM),
             "action": np.array(s["action"], np.float32).reshape(n_steps, ACTION_DIM),
             "offsets": np.concatenate([[0], np.cumsum(self._counts, dtype=np.int64)]).astype(np.int64),
@@ -444,6 +456,7 @@ def _step_of_observation(observation: Any, decision: Any) -> dict[str, Any]:
         "light_remaining_s": float(light.remaining_s),
         "speed_mode": None if decision is None else decision.speed_mode,
         "path_index": -1 if decision is None else int(decision.path_index),
+        "shield_braking": None if decision is None else getattr(decision, "shield_braking", None),
         "ego": observation.ego,
         "action": None if decision is None else decision.action,
         "ids": snap.ids, "kinds": snap.kind, "x": snap.x, "y": snap.y, "heading": snap.heading,
