@@ -71,14 +71,14 @@ class IdcController:
 
     def decide(self, observation: Observation) -> Decision:
         mode = self.speed_mode(observation)
-        if not self.shield:
-            others = select_others(observation.ego, observation.perceived.observations,
-                                   observation.perceived.kinds)
+        if self.shield:  # the shield's f_other turns each participant by its route's curvature
+            others, kappa = observed_others(observation)
         else:
-            others, kappa = observed_others(observation)  # f_other turns each by its route
+            others, kappa = select_others(observation.ego, observation.perceived.observations,
+                                          observation.perceived.kinds), None
         states = build_states(observation.ego, others, self._candidates, mode)
         best, action, values = self.decide_states(states)
-        if not self.shield:
+        if kappa is None:
             return Decision(action, best, mode, values)
         verdict = shield_action(observation.ego, others, kappa, action)
         return Decision(verdict.action, best, mode, values, shield_braking=verdict.braking)

@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from crossroads.constants import EGO_LENGTH_M
+from crossroads.idc.constraints import LANE_WIDTH_M  # neighbours stand one lane width off the path
 from crossroads.idc.state import ACC, KIND_ROWS, O_PX, O_PY, PX, PY, VX
 from crossroads.planning.routes import CandidatePath
 from crossroads.rl.buffer import Samples
@@ -42,9 +43,6 @@ from crossroads.sim.ego import braking_distance_m
 
 CAR_LENGTH_M = 5.0  # [m] SUMO's default passenger car
 CAR_WIDTH_M = 1.8  # [m]
-
-
-LANE_WIDTH_M = 3.5  # [m] neighbours stand one lane width (idc.constraints.LANE_WIDTH_M) off the path
 QUEUE_SPACING_M = (1.0, 3.0)  # [m] bumper gap between queued cars, drawn uniformly
 BESIDE_FROM_M = -8.0  # [m] a neighbour stands from this far behind the ego's centre...
 BESIDE_PAST_M = 10.0  # [m] ...to this far past the car ahead, along the path
