@@ -65,7 +65,7 @@ def run_episode(
     events: list[dict[str, Any]] = []
     min_distance = _closest_distance(observation)
     last_mode = last_path = None
-    last_shield: bool | None = None
+    last_shield = False  # a shielded run starts with the shield off: its first event is it braking
     outcome: Outcome | None = None
     steps = 0
     while outcome is None:
@@ -79,9 +79,8 @@ def run_episode(
                            "value": int(decision.path_index)})
             last_path = decision.path_index
         if decision.shield_braking is not None and decision.shield_braking != last_shield:
-            if decision.shield_braking or last_shield is not None:  # not the first "off" of a shielded run
-                events.append({"t": round(observation.time_s, 2), "event": "shield_braking",
-                               "value": bool(decision.shield_braking)})
+            events.append({"t": round(observation.time_s, 2), "event": "shield_braking",
+                           "value": decision.shield_braking})
             last_shield = decision.shield_braking
         if recorder is not None:
             recorder.record(observation, decision)

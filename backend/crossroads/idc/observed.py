@@ -10,15 +10,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from crossroads.idc.state import select_others
+from crossroads.idc.state import N_OTHERS, select_others, selected_rows
 from crossroads.sim.world import Observation, participant_curvatures
 
 
 def observed_others(obs: Observation) -> tuple[np.ndarray, np.ndarray]:
-    """(x_other (16, 6), κ (16,)) of the participants ``obs`` perceives."""
+    """(x_other (16, 6), κ (16,)) of the participants ``obs`` perceives. The curvature is computed
+    for the 16 participants in the slots only, not for all ~100 perceived (it walks each one's lane:
+    0.48 ms a step for all of them, about a third of what the shield added to a decision)."""
     seen = obs.perceived
     others = select_others(obs.ego, seen.observations, seen.kinds)
-    kappa_rows = np.array(seen.observations, dtype=np.float64, copy=True).reshape(-1, 6)
-    kappa_rows[:, 2] = participant_curvatures(obs.lane_shapes, obs.participants, seen.rows)
-    kappa = select_others(obs.ego, kappa_rows, seen.kinds)[:, 2]  # pads: speed 0 → κ 0
+    slots = selected_rows(obs.ego, seen.observations, seen.kinds)
+    taken = slots >= 0
+    kappa = np.zeros(N_OTHERS)  # pads: κ 0
+    kappa[taken] = participant_curvatures(obs.lane_shapes, obs.participants, seen.rows[slots[taken]])
     return others, kappa

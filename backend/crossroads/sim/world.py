@@ -387,11 +387,6 @@ class World:
             return Outcome("timeout", self.time_s, detail)
         return None
 
-    def curvatures(self, snap: Snapshot, rows: np.ndarray) -> FloatArray:
-        """Signed curvature 1/R [1/m] of the given participants, from their lane and position
-        (0 on lanes the junction does not describe, and for pedestrians)."""
-        return participant_curvatures(self.lane_shapes, snap, rows)
-
     @property
     def stop_line_crossed_s(self) -> float | None:
         """[s] since entry at which the ego's front bumper crossed the stop line, if it has."""

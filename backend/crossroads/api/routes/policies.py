@@ -27,10 +27,10 @@ def available_policies(directory: Path) -> list[PolicyPublic]:
         for path in sorted(directory.glob("*.pt")):
             if not path.is_file() or path.stem in BUILTIN_POLICIES:
                 continue
-            card = read_model_card(path)
+            card, size = read_model_card(path), path.stat().st_size
             for shield in (False, True):
                 found.append(PolicyPublic(name=path.stem + (SHIELD_SUFFIX if shield else ""), kind="checkpoint",
-                                          file=path.name, shield=shield, size_bytes=path.stat().st_size, card=card))
+                                          file=path.name, shield=shield, size_bytes=size, card=card))
     return found
 
 
