@@ -19,6 +19,9 @@ import torch
 from crossroads.constants import JERK_MAX, PENALTY_RHO, STEER_RATE_MAX
 from crossroads.idc.controller import Decision
 from crossroads.idc.decision import IdcController
+from crossroads.idc.observed import observed_others
+from crossroads.idc.state import build_states, path_tensors
+from crossroads.planning import CandidatePath
 from crossroads.rl.model import IDCModel, Rollout, StateBatch
 from crossroads.sim.world import Observation, World
 
@@ -56,12 +59,13 @@ def probed_states(world: World, controller: IdcController, seeds: Sequence[int],
             step += 1
 
 
-def open_loop_optimum(model: IDCModel, batch: StateBatch, steps: int = 250, lr: float = 0.05) -> Rollout:
-    """The model's own best plan from each state: Adam on the T actions of every state alone (no
-    policy), minimising J_π = J_track + ρ J_safe with ξ ≡ 0; the actions go through tanh into their
-    ranges so every step stays feasible. Zero actions to start. Its rollout (no gradient)."""
+def optimise_plans(model: IDCModel, batch: StateBatch, raw: torch.Tensor, steps: int, lr: float = 0.05
+                   ) -> tuple[torch.Tensor, Rollout]:
+    """Adam on the T actions of every state alone (no policy), minimising J_π = J_track + ρ J_safe
+    with ξ ≡ 0, from the plans ``raw`` (B, T, 2) before tanh: the actions go through tanh into
+    their ranges, so every step stays feasible. (the optimised raw plans, their rollout)."""
     scale = torch.tensor([STEER_RATE_MAX, JERK_MAX], dtype=batch.ego.dtype)
-    raw = torch.zeros(batch.ego.shape[0], HORIZON, 2, dtype=batch.ego.dtype, requires_grad=True)
+    raw = raw.detach().clone().requires_grad_(True)
     optimiser = torch.optim.Adam([raw], lr=lr)
 
     def plan(_s: torch.Tensor, i: int) -> torch.Tensor:
@@ -73,4 +77,63 @@ def open_loop_optimum(model: IDCModel, batch: StateBatch, steps: int = 250, lr: 
         (out.j_track + PENALTY_RHO * out.j_safe).sum().backward()  # states are independent: a sum
         optimiser.step()
     with torch.no_grad():
-        return model.rollout(batch, plan, None, HORIZON)
+        return raw.detach(), model.rollout(batch, plan, None, HORIZON)
+
+
+def open_loop_optimum(model: IDCModel, batch: StateBatch, steps: int = 250, lr: float = 0.05) -> Rollout:
+    """The model's own best plan from each state (``optimise_plans`` from zero actions): its rollout."""
+    zero = torch.zeros(batch.ego.shape[0], HORIZON, 2, dtype=batch.ego.dtype)
+    return optimise_plans(model, batch, zero, steps, lr)[1]
+
+
+class ModelOptimumController(IdcController):
+    """Receding-horizon control on the training model: the value network picks τ* and the light logic
+    the mode as in IDC, but the command is the first action of the model's own optimal plan for that
+    path (``optimise_plans``), not the policy's. The first plan of an episode starts from the
+    policy's (``first_steps`` Adam steps); every later one from the last, shifted one step (``steps``),
+    also when τ* changes: the plans of neighbouring paths differ little, and τ* changes often.
+
+    What a perfectly trained policy would do, where the model's predictions hold: it shows whether a
+    target is out of reach of the cost J_π itself or only of the policy. Slow (~0.5 s a decision)."""
+
+    def __init__(self, policy: torch.nn.Module, value: torch.nn.Module, steps: int = 40,
+                 first_steps: int = 150, braking_floor: bool = False) -> None:
+        super().__init__(policy, value, name="model optimum")
+        self.steps = steps
+        self.first_steps = first_steps
+        self.braking_floor = braking_floor
+        self._model: IDCModel | None = None
+        self._plan: torch.Tensor | None = None
+
+    def reset(self, candidates: Sequence[CandidatePath]) -> None:
+        super().reset(candidates)
+        self._model = IDCModel(path_tensors(candidates), braking_floor=self.braking_floor)
+        self._plan = None
+
+    def decide(self, observation: Observation) -> Decision:
+        assert self._model is not None, "reset() first"
+        mode = self.speed_mode(observation)
+        others, kappa = observed_others(observation)
+        states = build_states(observation.ego, others, self._candidates, mode)
+        best, _, values = self.decide_states(states)
+        f = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)[None]  # noqa: E731
+        batch = StateBatch(f(observation.ego), f(others), f(kappa), torch.tensor([best]),
+                           torch.tensor([mode == "stop"]))
+        scale = torch.tensor([STEER_RATE_MAX, JERK_MAX])
+        if self._plan is None:
+            actions: list[torch.Tensor] = []
+
+            def policy_plan(s: torch.Tensor, _: int) -> torch.Tensor:
+                actions.append(self.policy.mean_action(s))
+                return actions[-1]
+
+            with torch.no_grad():
+                self._model.rollout(batch, policy_plan, None, HORIZON)
+            start = torch.atanh((torch.stack(actions, 1) / scale).clamp(-0.999, 0.999))
+            steps = self.first_steps
+        else:
+            start = torch.cat([self._plan[:, 1:], self._plan[:, -1:]], dim=1)
+            steps = self.steps
+        self._plan, _ = optimise_plans(self._model, batch, start, steps)
+        action = (torch.tanh(self._plan[0, 0]) * scale).double().numpy()
+        return Decision(action, best, mode, values)

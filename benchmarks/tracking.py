@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/tracking.py --policy models/apg.pt      # a trained IDC policy
     .venv/bin/python benchmarks/tracking.py --policy rule               # the rule-based baseline
+    .venv/bin/python benchmarks/tracking.py --policy models/apg.pt --model-optimum --intersections c_three_lane
 
 For each intersection, task and candidate path, the ego starts on the path's entrance lane, the
 light is green, nobody else is on the road, and the controller drives that one path (it is the
@@ -9,20 +10,25 @@ only candidate it is given) until it leaves the intersection. Every step records
 error √(Δx² + Δy²) to the path and the speed error against the pass-mode profile. The table prints
 their maxima (and the 99th percentile) per path; the paper claims tracking error ≤ 0.2 m and speed
 error < 3 m/s everywhere.
+
+``--model-optimum`` drives with the receding-horizon optimum of the checkpoint's own training model
+instead of its policy (``probing.ModelOptimumController``, ~0.5 s a step: pick intersections): what a
+policy that had reached its cost's optimum would track.
 """
 
 from __future__ import annotations
 
 import argparse
-from dataclasses import replace
-
 import math
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 
 from crossroads.constants import L_F, L_R, STEER_MAX
 
 from crossroads.evaluation.policies import load_controller
+from crossroads.idc.controller import Controller
 from crossroads.network import catalogue
 from crossroads.network.model import TASKS
 from crossroads.sim.config import EgoStart, WorldConfig
@@ -37,9 +43,9 @@ MAX_CURVATURE = math.tan(STEER_MAX) / (L_F + L_R)  # [1/m]
 SPEED_TARGET_MPS = 3.0
 
 
-def drive_one_path(world: World, path_index: int, policy: str, seed: int) -> tuple[np.ndarray, np.ndarray, str]:
+def drive_one_path(world: World, path_index: int, controller: Controller, seed: int
+                   ) -> tuple[np.ndarray, np.ndarray, str]:
     """Distance and speed errors of every step of one episode on one candidate path."""
-    controller = load_controller(policy)
     path = world.candidates[path_index]
     obs = world.reset(seed)
     controller.reset([path])
@@ -62,10 +68,23 @@ def main() -> None:
     parser.add_argument("--policy", default="rule", help="'rule' or a checkpoint (.pt)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--intersections", nargs="*", default=None)
+    parser.add_argument("--model-optimum", action="store_true",
+                        help="drive the checkpoint's model optimum instead of its policy (slow)")
     args = parser.parse_args()
+    if args.model_optimum:
+        if args.policy == "rule" or "+" in args.policy:
+            parser.error("--model-optimum: --policy must be a trained checkpoint (.pt)")
+        from probing import ModelOptimumController  # benchmarks/ is on sys.path when run as a script
+
+        from crossroads.rl.checkpoint import load_networks
+
+        networks, _ = load_networks(Path(args.policy))
+        make = lambda: ModelOptimumController(networks.policy, networks.value)  # noqa: E731
+    else:
+        make = lambda: load_controller(args.policy)  # noqa: E731
 
     names = args.intersections or catalogue.list_intersections()
-    print(f"policy {args.policy}; no traffic, green light, pass mode; "
+    print(f"policy {args.policy}{' (its model optimum)' if args.model_optimum else ''}; no traffic, green light, pass mode; "
           f"targets: tracking <= {TRACKING_TARGET_M} m, speed error < {SPEED_TARGET_MPS} m/s")
     print(f"{'intersection':<22}{'path':<12}{'steps':>6}{'track max':>11}{'track p99':>11}"
           f"{'speed max':>11}{'speed p99':>11}{'max κ':>9}  outcome")
@@ -80,7 +99,7 @@ def main() -> None:
             for k, path in enumerate(paths):
                 config = replace(base, ego_start=EgoStart(entrance_lane=path.entrance_lane))
                 with World(config) as world:
-                    distance, speed, outcome = drive_one_path(world, k, args.policy, args.seed)
+                    distance, speed, outcome = drive_one_path(world, k, make(), args.seed)
                 if len(distance) == 0:
                     continue
                 n_paths += 1

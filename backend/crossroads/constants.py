@@ -89,6 +89,9 @@ L_R: Final = 1.46  # [m] CG to rear axle
 MASS_KG: Final = 1520.0  # [kg]
 I_Z: Final = 2642.0  # [kg·m²]
 DT_S: Final = SIM_STEP_S  # [s] discrete time of f_ego / f_other
+# (choice) How hard a surrounding participant may brake in the predictions that assume it does (the
+# safety shield's second future, the training model's braking floor): SUMO's default passenger-car decel
+OTHER_DECEL_MPS2: Final = 4.5  # [m/s²]
 # (choice) the ego's footprint, a mid-size car around the paper's 2.65 m wheelbase (L_f + L_r).
 # Used for its SUMO vehicle, the true-footprint collision check and the safety circles.
 EGO_LENGTH_M: Final = 4.8  # [m]

@@ -133,3 +133,37 @@ def test_nominal_floor_is_never_milder_than_either_prediction(path_set) -> None:
     assert torch.equal(floored.rollout(batch, act, None, T).j_safe, nominal.j_safe)
     zero = floored.rollout(batch, act, lambda s, i: torch.zeros_like(xis[i]), T)
     torch.testing.assert_close(zero.j_safe, nominal.j_safe, rtol=0, atol=1e-12)
+
+
+def test_braking_floor_makes_a_slowing_car_ahead_bind() -> None:
+    """The ego coasting at 8 m/s, 19 m (centres) behind a car doing 6 m/s on its straight path: kept at
+    its speed the car stays ~14 m ahead over T = 25 steps, no constraint binds; braking at 4.5 m/s²
+    it stops 4 m on and the ego runs into it: the braking floor's J_safe > 0. Nobody in reach: equal."""
+    from crossroads.idc.state import path_tensors
+    from crossroads.network import catalogue
+    from crossroads.sim.config import WorldConfig
+    from crossroads.sim.traffic import NO_TRAFFIC
+    from crossroads.sim.world import World
+    from crossroads.rl.buffer import StateBatch
+
+    with World(WorldConfig(net_file=catalogue.build("c_three_lane"), task="straight", demand=NO_TRAFFIC,
+                           warmup_s=1.0)) as world:
+        path = world.candidates[1]
+    x0, y0 = path.points[0]
+    heading = float(path.heading[0])
+    c, s = np.cos(heading), np.sin(heading)
+    ego = torch.tensor([[x0, y0, 8.0, 0.0, heading, 0.0, 0.0, 0.0]], dtype=torch.float64)
+    others = torch.zeros(1, 16, 6, dtype=torch.float64)
+    others[..., 0] = 1e4  # padding: far away
+    others[0, 0] = torch.tensor([x0 + 19.0 * c, y0 + 19.0 * s, 6.0, heading, 4.8, 1.8])
+    batch = StateBatch(ego, others, torch.zeros(1, 16, dtype=torch.float64), torch.tensor([0]), torch.tensor([False]))
+    paths = path_tensors([path], dtype=torch.float64)
+    coast = lambda s_, i: torch.zeros(1, 2, dtype=torch.float64)  # noqa: E731  (keep a = 0)
+    plain = IDCModel(paths).rollout(batch, coast, None, 25)
+    floored = IDCModel(paths, braking_floor=True).rollout(batch, coast, None, 25)
+    assert plain.j_safe.item() == 0.0 and plain.overlap_m.item() < -5.0
+    assert floored.j_safe.item() > 0.0 and floored.overlap_m.item() > 0.0
+    assert torch.equal(floored.j_track, plain.j_track)
+    far = StateBatch(ego, others[:, 1:2].expand(1, 16, 6).clone(), batch.kappa, batch.path, batch.stop)
+    assert torch.equal(IDCModel(paths, braking_floor=True).rollout(far, coast, None, 25).j_safe,
+                       IDCModel(paths).rollout(far, coast, None, 25).j_safe)

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from crossroads.constants import DT_S
-from crossroads.sim.other import other_step, route_curvature
+from crossroads.sim.other import other_braking_step, other_step, route_curvature
 
 
 def test_straight_motion_without_noise() -> None:
@@ -64,3 +64,18 @@ def test_route_curvature_of_arcs_and_lines() -> None:
     assert route_curvature(sparse, 0.0, 8.0) == pytest.approx(1 / 8.0, rel=0.1)
     # repeated vertices are harmless
     assert route_curvature(np.vstack([left[:5], left[4:]]), 10.0, 0.0) == pytest.approx(0.1, rel=0.05)
+
+
+def test_braking_step_stops_each_participant_at_its_stopping_distance_numpy_and_torch() -> None:
+    """v²/(2·4.5) ahead (to within one step's travel, the recursion moves with the old speed), on
+    its curve, and then stands; torch gives the same numbers."""
+    others = np.array([[0.0, 0.0, 9.0, 0.0, 4.8, 1.8], [5.0, 5.0, 0.0, 1.0, 0.5, 0.5]])
+    kappa = np.array([0.0, 0.02])
+    state, state_t = others, torch.as_tensor(others)
+    for _ in range(40):
+        state = other_braking_step(state, kappa, 4.5)
+        state_t = other_braking_step(state_t, torch.as_tensor(kappa), 4.5)
+    np.testing.assert_allclose(state_t.numpy(), state, atol=1e-9)
+    assert state[0, 2] == 0.0 and state[1, 2] == 0.0
+    assert 9.0**2 / 9.0 <= state[0, 0] <= 9.0**2 / 9.0 + 9.0 * DT_S
+    np.testing.assert_array_equal(state[1], others[1])  # standing: nowhere to go

@@ -49,12 +49,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from crossroads.constants import DT_S, JERK_MAX, TRACK_STATE_DIM
+from crossroads.constants import DT_S, JERK_MAX, OTHER_DECEL_MPS2, TRACK_STATE_DIM
 from crossroads.idc.constraints import SAFETY_MARGIN_M, safety_constraints
 from crossroads.idc.state import KIND_ROWS, N_OTHERS, O_L, O_PHI, O_PX, O_PY, O_V, PHI, PX, PY
 from crossroads.sim.ego import ego_step
 
-OTHER_DECEL_MPS2 = 4.5  # [m/s²] how hard a participant may brake: SUMO's default passenger-car decel
 # [m] the clearance the backups must keep between circles: the training constraints' safety margin.
 # With none (the bodies' circles only) the ego braked from 3.6 m/s at the last moment the model
 # allowed and touched the standing car at 1.6 m/s (f_ego against SUMO's moves, noisy lengths)

@@ -75,6 +75,13 @@ class TrainConfig:
     and the ξ ≡ 0 one (rl.model), so a half-trained adversary cannot make the scene look safer than
     plain prediction does (measured: session 5's adversary sped up a standing queue ahead of the
     ego, and its policy drove into such queues). False: the adversary's prediction alone."""
+    braking_floor: bool = False
+    """(choice) Each safety constraint of the model is also the worse of the prediction and one with
+    every participant braking at ``constants.OTHER_DECEL_MPS2`` to a stand (rl.model), so a plan must
+    stay safe if the car ahead brakes. Measured (session 9, docs/measurements/model-optimum.md): the
+    model's own receding-horizon optimum without it passed no more nominal left turns than the
+    policy, and drove at 8.3 m/s into a queue whose last car was slowing from 1 m/s; with it, it
+    braked in time. Off by default until a run has trained with it."""
     sample_actions: bool = True
     """Training rollouts draw u ~ π_θ and ξ ~ π_φ by reparameterisation (the paper's u ~ π_θ(s));
     False uses the tanh-squashed means (deterministic rollouts)."""

@@ -40,6 +40,14 @@ is then predicted to drive off at 2.2 m/s² — and 1 s before 32 of its 37 coll
 nominal left turns its mean ξ gave the policy's plan a lower J_safe than ξ ≡ 0 (median 3.9 against
 47.4). The policy learned to drive into queues. The ego's states (the networks' inputs) still follow the adversary's scene; only the
 constraints see both. DPG (ξ ≡ 0) is unchanged.
+
+The braking floor (``braking_floor``, **(choice)**, ``TrainConfig.braking_floor``, off by default):
+each safety constraint is also taken as the worse of the above and a prediction in which every
+participant brakes at ``constants.OTHER_DECEL_MPS2`` to a stand (``sim.other.other_braking_step``,
+the safety shield's second future). f_other keeps each speed, so over 2.5 s a car slowing into the
+end of a queue is predicted to roll on: session 9's receding-horizon optimum of the model
+(benchmarks/probing.py) drove at 8.3 m/s into such a car (1 m/s and slowing, 14 m ahead) and
+braked only when its constraint bound, too late; with the floor it braked in time and passed.
 """
 
 from __future__ import annotations
@@ -50,13 +58,14 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
+from crossroads.constants import OTHER_DECEL_MPS2
 from crossroads.idc.constraints import SAFETY_MARGIN_M, penalty, road_constraints, safety_constraints
 from crossroads.idc.state import N_OTHERS, PathTensors, reference_points_torch, tracking_error
 from crossroads.idc.utility import utility
 from crossroads.rl.buffer import StateBatch
 from crossroads.rl.config import XiPositions, check_xi_positions
 from crossroads.sim.ego import ego_step
-from crossroads.sim.other import other_step
+from crossroads.sim.other import other_braking_step, other_step
 
 ActionFn = Callable[[Tensor, int], Tensor]  # (s_i [B, 108], i) → u_i [B, 2]
 XiFn = Callable[[Tensor, int], Tensor]  # (s_i [B, 108], i) → ξ_i [B, 16, 4]
@@ -80,11 +89,13 @@ def assemble(ego: Tensor, track: Tensor, others: Tensor) -> Tensor:
 class IDCModel:
     """The model f over a fixed set of candidate paths (padded, see ``idc.state.path_tensors``)."""
 
-    def __init__(self, paths: PathTensors, xi_positions: XiPositions = "offset", nominal_floor: bool = False) -> None:
+    def __init__(self, paths: PathTensors, xi_positions: XiPositions = "offset", nominal_floor: bool = False,
+                 braking_floor: bool = False) -> None:
         check_xi_positions(xi_positions)
         self.paths = paths
         self.xi_positions = xi_positions
         self.nominal_floor = nominal_floor
+        self.braking_floor = braking_floor
 
     def track(self, ego: Tensor, path: Tensor, stop: Tensor) -> tuple[Tensor, Tensor]:
         """(x_track [B, 4], road constraints g [B, 4]) of ``ego`` against its path and mode."""
@@ -105,6 +116,7 @@ class IDCModel:
         overlap = torch.full_like(j_track, -torch.inf)
         course = others  # "offset": each participant's trajectory before this step's ξ_x, ξ_y
         nominal = others  # the ξ ≡ 0 prediction, for the nominal floor
+        braking = others  # everyone braking to a stand, for the braking floor
         floor = self.nominal_floor and disturb is not None
         for i in range(horizon):
             u = act(s, i)
@@ -122,6 +134,9 @@ class IDCModel:
             if floor:
                 nominal = other_step(nominal, kappa, None)
                 g_safe = torch.maximum(g_safe, safety_constraints(assemble(ego, x_track, nominal)))
+            if self.braking_floor:
+                braking = other_braking_step(braking, kappa, OTHER_DECEL_MPS2)
+                g_safe = torch.maximum(g_safe, safety_constraints(assemble(ego, x_track, braking)))
             g = torch.cat([g_safe, road_constraints(s, ref.x, ref.y, ref.heading)], dim=-1)
             j_track = j_track + l
             j_safe = j_safe + penalty(g)

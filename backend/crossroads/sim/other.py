@@ -48,6 +48,17 @@ def other_step(others: Any, curvature: Any, xi: Any | None = None, dt: float = D
     return xp.stack([px_n, py_n, v_n, phi_n, length, width], axis=-1)
 
 
+def other_braking_step(others: Any, curvature: Any, decel_mps2: float, dt: float = DT_S) -> Any:
+    """One step of f_other with every participant braking at ``decel_mps2`` until it stands: ξ_v =
+    −min(v, decel·Δt), the rest of ξ zero (the "everyone brakes hard" future)."""
+    xp = ops(others, curvature)
+    others = xp.asarray(others, like=others)
+    v = others[..., 2]
+    dv = -xp.clip(v, 0.0, decel_mps2 * dt)
+    zero = xp.zeros_like(v)
+    return other_step(others, curvature, xp.stack([zero, zero, dv, zero], axis=-1), dt)
+
+
 def route_curvature(points: ArrayLike, x: float, y: float, window_m: float = CURVATURE_WINDOW_M) -> float:
     """Signed curvature [1/m] (positive turning left) of a route polyline near (x, y).
 
