@@ -80,8 +80,8 @@ class TrainConfig:
     every participant braking at ``constants.OTHER_DECEL_MPS2`` to a stand (rl.model), so a plan must
     stay safe if the car ahead brakes. Measured (session 9, docs/measurements/model-optimum.md): the
     model's own receding-horizon optimum without it passed no more nominal left turns than the
-    policy, and drove at 8.3 m/s into a queue whose last car was slowing from 1 m/s; with it, it
-    braked in time. Off by default until a run has trained with it."""
+    policy: at 8.3 m/s it braked too late for a queue whose last car was slowing from 1 m/s and hit it
+    at 1.1 m/s; with the floor it braked in time. Off by default until a run has trained with it."""
     sample_actions: bool = True
     """Training rollouts draw u ~ π_θ and ξ ~ π_φ by reparameterisation (the paper's u ~ π_θ(s));
     False uses the tanh-squashed means (deterministic rollouts)."""
