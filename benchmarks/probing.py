@@ -26,6 +26,7 @@ from crossroads.rl.model import IDCModel, Rollout, StateBatch
 from crossroads.sim.world import Observation, World
 
 HORIZON = 25  # the paper's T, the training model's rollout length
+ACTION_SCALE = torch.tensor([STEER_RATE_MAX, JERK_MAX])  # tanh(raw plan) × this = u = [Δδ, Δa]
 
 
 def ego_frame(ego: np.ndarray, x: Any, y: Any) -> tuple[Any, Any]:
@@ -64,7 +65,7 @@ def optimise_plans(model: IDCModel, batch: StateBatch, raw: torch.Tensor, steps:
     """Adam on the T actions of every state alone (no policy), minimising J_π = J_track + ρ J_safe
     with ξ ≡ 0, from the plans ``raw`` (B, T, 2) before tanh: the actions go through tanh into
     their ranges, so every step stays feasible. (the optimised raw plans, their rollout)."""
-    scale = torch.tensor([STEER_RATE_MAX, JERK_MAX], dtype=batch.ego.dtype)
+    scale = ACTION_SCALE.to(batch.ego.dtype)
     raw = raw.detach().clone().requires_grad_(True)
     optimiser = torch.optim.Adam([raw], lr=lr)
 
@@ -120,7 +121,6 @@ class ModelOptimumController(IdcController):
         f = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)[None]  # noqa: E731
         batch = StateBatch(f(observation.ego), f(others), f(kappa), torch.tensor([best]),
                            torch.tensor([mode == "stop"]))
-        scale = torch.tensor([STEER_RATE_MAX, JERK_MAX])
         if self._plan is None:
             actions: list[torch.Tensor] = []
 
@@ -130,11 +130,11 @@ class ModelOptimumController(IdcController):
 
             with torch.no_grad():
                 self._model.rollout(batch, policy_plan, None, HORIZON)
-            start = torch.atanh((torch.stack(actions, 1) / scale).clamp(-0.999, 0.999))
+            start = torch.atanh((torch.stack(actions, 1) / ACTION_SCALE).clamp(-0.999, 0.999))
             steps = self.first_steps
         else:
             start = torch.cat([self._plan[:, 1:], self._plan[:, -1:]], dim=1)
             steps = self.steps
         self._plan, _ = optimise_plans(self._model, batch, start, steps)
-        action = (torch.tanh(self._plan[0, 0]) * scale).double().numpy()
+        action = (torch.tanh(self._plan[0, 0]) * ACTION_SCALE).double().numpy()
         return Decision(action, best, mode, values)

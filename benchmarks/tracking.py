@@ -12,7 +12,7 @@ their maxima (and the 99th percentile) per path; the paper claims tracking error
 error < 3 m/s everywhere.
 
 ``--model-optimum`` drives with the receding-horizon optimum of the checkpoint's own training model
-instead of its policy (``probing.ModelOptimumController``, ~0.5 s a step: pick intersections): what a
+instead of its policy (``probing.ModelOptimumController``, 0.5–1.4 s a step: pick intersections): what a
 policy that had reached its cost's optimum would track.
 """
 

@@ -5,10 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from crossroads.constants import JERK_MAX
+from crossroads.constants import JERK_MAX, OTHER_DECEL_MPS2
 from crossroads.idc.constraints import EGO_CIRCLE_OFFSET_M, EGO_RADIUS_M
 from crossroads.idc.shield import (
-    OTHER_DECEL_MPS2,
     SHIELD_CLEARANCE_M,
     backups,
     followers,
@@ -17,7 +16,7 @@ from crossroads.idc.shield import (
 )
 from crossroads.idc.state import N_OTHERS, pad_participant
 from crossroads.sim.ego import braking_distance_m
-from crossroads.sim.other import other_step
+from crossroads.sim.other import other_braking_step, other_step
 
 CAR_L, CAR_W = 5.0, 1.8
 EGO = np.array([0.0, 0.0, 8.0, 0.0, 0.0, 0.0, 0.0, 0.0])  # 8 m/s due east, a = 0
@@ -41,9 +40,7 @@ def test_the_predictions_are_f_other_stepped() -> None:
     keep = brake = others
     for i in range(40):
         keep = other_step(keep, kappa)
-        xi = np.zeros((N_OTHERS, 4))
-        xi[:, 2] = -np.minimum(brake[:, 2], OTHER_DECEL_MPS2 * 0.1)
-        brake = other_step(brake, kappa, xi)
+        brake = other_braking_step(brake, kappa, OTHER_DECEL_MPS2)
         np.testing.assert_allclose(got[0, i], keep, atol=1e-9)
         np.testing.assert_allclose(got[1, i], brake, atol=1e-9)
     assert np.all(got[1, -1, :, 2] == 0.0)  # 8 m/s at 4.5 m/s² stands within 2 s

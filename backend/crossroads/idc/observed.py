@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from crossroads.idc.state import N_OTHERS, select_others, selected_rows
+from crossroads.idc.state import N_OTHERS, others_in_slots, selected_rows
 from crossroads.sim.world import Observation, participant_curvatures
 
 
@@ -19,8 +19,8 @@ def observed_others(obs: Observation) -> tuple[np.ndarray, np.ndarray]:
     for the 16 participants in the slots only, not for all ~100 perceived (it walks each one's lane:
     0.48 ms a step for all of them, about a third of what the shield added to a decision)."""
     seen = obs.perceived
-    others = select_others(obs.ego, seen.observations, seen.kinds)
     slots = selected_rows(obs.ego, seen.observations, seen.kinds)
+    others = others_in_slots(obs.ego, seen.observations, slots)
     taken = slots >= 0
     kappa = np.zeros(N_OTHERS)  # pads: κ 0
     kappa[taken] = participant_curvatures(obs.lane_shapes, obs.participants, seen.rows[slots[taken]])

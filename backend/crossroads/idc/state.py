@@ -118,16 +118,21 @@ def select_others(
     empty slots are filled with :func:`pad_participant`. Kinds other than the three are ignored.
     Which rows fill the slots: :func:`selected_rows`.
     """
+    return others_in_slots(ego_xy, observations, selected_rows(ego_xy, observations, kinds), ego_heading)
+
+
+def others_in_slots(ego_xy: ArrayLike, observations: ArrayLike, rows: NDArray[np.intp],
+                    ego_heading: float | None = None) -> FloatArray:
+    """The (16, 6) block of :func:`select_others` from its :func:`selected_rows` (for callers that
+    need the rows too: the sort runs once)."""
     e = np.asarray(ego_xy, dtype=np.float64)
     heading = float(e[PHI]) if (ego_heading is None and e.shape[-1] > PHI) else float(ego_heading or 0.0)
     out = np.empty((N_OTHERS, OTHER_STATE_DIM))
     out[:] = _pad_row(float(e[0]), float(e[1]), heading)
-    obs = np.asarray(observations, dtype=np.float64).reshape(-1, OTHER_STATE_DIM)
-    if len(obs) == 0:
-        return out
-    rows = selected_rows(e, obs, kinds)
     taken = rows >= 0
-    out[taken] = obs[rows[taken]]
+    if taken.any():
+        obs = np.asarray(observations, dtype=np.float64).reshape(-1, OTHER_STATE_DIM)
+        out[taken] = obs[rows[taken]]
     return out
 
 
