@@ -84,3 +84,51 @@ def test_cosine_annealing_reaches_the_end_rates(model, path_set) -> None:
     rates = lr.lrs()
     assert abs(rates["policy"] - 2e-6) < 1e-12 and abs(rates["value"] - 1e-6) < 1e-12
     assert abs(rates["adversary"] - 2e-6) < 1e-12
+
+
+def saturate_braking(lr: Learner, z: float = 6.0) -> None:
+    """Push the policy's pre-tanh Δa mean to about ``z`` in every state (tanh'(6) ≈ 2e-5)."""
+    out = lr.nets.policy.net[-1]
+    with torch.no_grad():
+        out.weight[1].zero_()
+        out.bias[1] = -z
+
+
+def test_saturation_penalty_is_measured_and_pulls_saturated_outputs_back(model, path_set) -> None:
+    lr = learner(model, sample_actions=False, pre_squash_weight=10.0, policy_lr=(1e-3, 1e-3))
+    saturate_braking(lr, z=6.0)
+    batch = make_batch(path_set, 8, seed=11)
+    with torch.no_grad():  # the first state's Δδ mean, as a check that only Δa is saturated
+        mean, _ = lr.nets.policy.distribution(lr.model.initial_states(batch))
+    assert mean[:, 0].abs().max() < 2.5 and torch.allclose(mean[:, 1], torch.tensor(-6.0))
+    losses = lr.update(batch, 1, value=False, adversary=False)
+    # Δa at z = −6 in every state of the rollout, Δδ inside the bound: half the outputs saturated,
+    # each by 6 − 2.5 = 3.5
+    assert losses.saturated_share == pytest.approx(0.5, abs=0.05)
+    assert losses.saturation == pytest.approx(3.5**2 / 2, rel=0.05)
+    # Adam's first step moves each parameter by lr against its gradient's sign: the penalty's pull
+    # toward z = 0 outweighs J_π's through tanh's flat tail
+    assert lr.nets.policy.net[-1].bias[1].item() == pytest.approx(-6.0 + 1e-3, abs=1e-5)
+
+
+@pytest.mark.parametrize("variant", [{"pre_squash_weight": 10.0}, {"policy_loss": "log"}])
+def test_the_policys_own_loss_leaves_the_adversary_step_alone(model, path_set, variant) -> None:
+    batch = make_batch(path_set, 8, seed=11)
+    runs = []
+    for overrides in ({}, variant):
+        lr = learner(model, sample_actions=False, **overrides)
+        saturate_braking(lr)
+        lr.update(batch, 0, value=False, policy=True, adversary=True)
+        runs.append((params(lr.nets.policy), params(lr.nets.adversary)))
+    (theta0, phi0), (theta1, phi1) = runs
+    assert all(torch.equal(a, b) for a, b in zip(phi0, phi1))  # the adversary's step is J_π's only
+    assert any(not torch.equal(a, b) for a, b in zip(theta0, theta1))
+
+
+def test_log_policy_loss_decreases_j_pi(model, path_set) -> None:
+    lr = learner(model, sample_actions=False, policy_loss="log")
+    batch = make_batch(path_set, 8, seed=11)
+    _, before, _ = lr.losses(batch)
+    lr.update(batch, 1, value=False, policy=True, adversary=False)
+    _, after, _ = lr.losses(batch)
+    assert after.item() < before.item()

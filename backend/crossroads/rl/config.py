@@ -35,6 +35,7 @@ from crossroads.network.model import TASKS
 Algo = Literal["apg", "dpg"]
 XiPositions = Literal["offset", "step"]  # how ξ_x, ξ_y act over the model's horizon (rl.model)
 XI_POSITION_MODES: tuple[str, ...] = typing.get_args(XiPositions)
+PolicyLoss = Literal["mean", "log"]  # how the driving policy weighs the states of a batch (rl.learner)
 
 
 def check_xi_positions(value: str) -> None:
@@ -85,6 +86,28 @@ class TrainConfig:
     sample_actions: bool = True
     """Training rollouts draw u ~ π_θ and ξ ~ π_φ by reparameterisation (the paper's u ~ π_θ(s));
     False uses the tanh-squashed means (deterministic rollouts)."""
+
+    policy_loss: PolicyLoss = "mean"
+    """(choice) What the driving policy's step minimises over the batch's states s: "mean" (paper):
+    J_π = mean_s (J_track + ρ J_safe)(s); "log": mean_s log(1 + (J_track + ρ J_safe)(s)), whose
+    gradient weighs each state's by 1 / (1 + J(s)), so a relative improvement counts the same in
+    every state. Each state's best plan is the same under both; what differs is which states a
+    network of finite size fits first. Under "mean" the few states with J in the hundreds (a car
+    close ahead) set the direction of every step: measured (session 11, 200 steps from run 5's
+    APG), the plan on an empty road at the reference speed kept braking at full jerk (J_track 40 →
+    30; the model's optimum 7) under "mean" and stopped braking within 50 steps under "log" (J_track
+    8.1). The adversary keeps the paper's mean (it maximises J_π); logs report J_π as the mean."""
+    pre_squash_bound: float = 2.5
+    """(choice) |z| of the driving policy's pre-tanh means beyond which an output counts as saturated
+    (``charts/saturated_share``) and the saturation penalty acts: tanh(2.5) = 0.987, so the bound
+    still leaves 98.7 % of each action's range."""
+    pre_squash_weight: float = 0.0
+    """(choice) Weight of the saturation penalty added to the driving policy's loss (not the
+    adversary's): weight × mean over the rollout's T states and the two outputs of max(0, |z| − bound)².
+    Past the bound tanh's slope vanishes (1 − tanh²(3) = 0.01), so J_π barely moves a saturated output
+    any more. Measured (session 11): run 5's APG had |z| > 3 on Δa in 55 % of sampled states, and on an
+    empty road at the reference speed it braked at full jerk (J_track of its plan 40 against 7 for
+    the model's optimum). 0 (paper): no penalty."""
 
     # --- networks (Sec. V-A) ---------------------------------------------------------------------
     hidden_layers: int = HIDDEN_LAYERS

@@ -5,7 +5,8 @@ One iteration k on a batch of initial states:
 1. roll the batch out through the model (u ~ π_θ, ξ ~ π_φ for APG, ξ ≡ 0 for DPG) → J_track, J_safe;
 2. value step: J_v = mean (v_w(s_0, τ) − J_track)², J_track detached (the regression target);
    w ← w − β_w ∇_w J_v;
-3. policy step: J_π = mean (J_track + ρ J_safe); θ ← θ − β_θ ∂_θ J_π;
+3. policy step: J_π = mean (J_track + ρ J_safe); θ ← θ − β_θ ∂_θ J_π (or the driving policy's own
+   variants, ``TrainConfig.policy_loss`` and ``pre_squash_weight``; see ``Learner.policy_loss``);
 4. adversary step, when k % m == 0 (APG only): φ ← φ + β_φ ∂_φ J_π (gradient ASCENT: Adam with
    ``maximize=True``), on the same J_π of step 1 (Algorithm 1 computes J_π once per iteration).
 
@@ -38,6 +39,10 @@ class Losses:
     j_track: float
     j_safe: float
     j_pi: float
+    saturated_share: float = 0.0
+    """Share of the driving policy's pre-tanh outputs over the rollout with |z| > ``pre_squash_bound``."""
+    saturation: float = 0.0
+    """The saturation penalty (unweighted; see ``TrainConfig.pre_squash_weight``)."""
     j_safe_per_state: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32), repr=False)
     """J_safe of each state of the batch (the buffer's danger scores, see ``ReplayBuffer``)."""
 
@@ -65,18 +70,30 @@ class Learner:
 
     # --- losses ------------------------------------------------------------------------------------
 
-    def rollout(self, batch: StateBatch, sample: bool | None = None) -> Rollout:
+    def rollout(self, batch: StateBatch, sample: bool | None = None,
+                pre_squash: list[Tensor] | None = None) -> Rollout:
         sample = self.config.sample_actions if sample is None else sample
-        act, disturb = policy_fns(self.nets.policy, self.nets.adversary, sample)
+        act, disturb = policy_fns(self.nets.policy, self.nets.adversary, sample, pre_squash)
         return self.model.rollout(batch, act, disturb, self.config.horizon)
 
-    def losses(self, batch: StateBatch, sample: bool | None = None) -> tuple[Tensor, Tensor, Rollout]:
-        """(J_v, J_π, rollout) of a batch, as graphs."""
-        out = self.rollout(batch, sample)
+    def losses(self, batch: StateBatch, sample: bool | None = None,
+               pre_squash: list[Tensor] | None = None) -> tuple[Tensor, Tensor, Rollout]:
+        """(J_v, J_π, rollout) of a batch, as graphs (``pre_squash``: see ``model.policy_fns``)."""
+        out = self.rollout(batch, sample, pre_squash)
         v = self.nets.value(out.s0)
         j_v = torch.mean((v - out.j_track.detach()) ** 2)
         j_pi = torch.mean(out.j_track + self.config.rho * out.j_safe)
         return j_v, j_pi, out
+
+    def policy_loss(self, out: Rollout, j_pi: Tensor, saturation: Tensor) -> Tensor:
+        """What the driving policy's step minimises (``TrainConfig.policy_loss`` and
+        ``pre_squash_weight``); ``j_pi`` itself when both are the paper's."""
+        loss = j_pi
+        if self.config.policy_loss == "log":
+            loss = torch.mean(torch.log1p(out.j_track + self.config.rho * out.j_safe))
+        if self.config.pre_squash_weight > 0:
+            loss = loss + self.config.pre_squash_weight * saturation
+        return loss
 
     # --- the update ----------------------------------------------------------------------------------
 
@@ -100,14 +117,23 @@ class Learner:
         """
         adversary = self.adversary_due(iteration) if adversary is None else adversary
         adversary = adversary and self.nets.adversary is not None
-        j_v, j_pi, out = self.losses(batch)
+        pre_squash: list[Tensor] = []
+        j_v, j_pi, out = self.losses(batch, pre_squash=pre_squash)
+        z = torch.stack(pre_squash)  # [T, B, 2] the driving policy's pre-tanh means
+        saturation = torch.mean(torch.relu(z.abs() - self.config.pre_squash_bound) ** 2)
         if value:
             w = list(self.nets.value.parameters())
             self._apply(self.nets.value, self.value_opt, torch.autograd.grad(j_v, w, allow_unused=True))
         theta = list(self.nets.policy.parameters()) if policy else []
         phi = list(self.nets.adversary.parameters()) if adversary else []  # type: ignore[union-attr]
         if theta or phi:
-            grads = torch.autograd.grad(j_pi, theta + phi, allow_unused=True)
+            policy_loss = self.policy_loss(out, j_pi, saturation)
+            if theta and policy_loss is not j_pi:  # the policy's own loss; the adversary keeps J_π
+                grads = torch.autograd.grad(policy_loss, theta, allow_unused=True, retain_graph=bool(phi))
+                if phi:
+                    grads += torch.autograd.grad(j_pi, phi, allow_unused=True)
+            else:
+                grads = torch.autograd.grad(j_pi, theta + phi, allow_unused=True)
             if theta:
                 self._apply(self.nets.policy, self.policy_opt, grads[: len(theta)])
             if phi:
@@ -120,8 +146,10 @@ class Learner:
                     if sched is not None:
                         sched.step()
         j_safe = out.j_safe.detach()
+        saturated = (z.detach().abs() > self.config.pre_squash_bound).float().mean()
         return Losses(float(j_v.detach()), float(out.j_track.detach().mean()), float(j_safe.mean()),
-                      float(j_pi.detach()), j_safe.cpu().numpy().astype(np.float32))
+                      float(j_pi.detach()), float(saturated), float(saturation.detach()),
+                      j_safe.cpu().numpy().astype(np.float32))
 
     def danger(self, batch: StateBatch) -> np.ndarray:
         """J_safe of the current policy's plan (means, no gradient) from each state of ``batch``:

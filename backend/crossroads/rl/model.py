@@ -154,13 +154,21 @@ def _displaced(others: Tensor, xi: Tensor) -> Tensor:
     return torch.cat([others[..., :2] + xi[..., :2], others[..., 2:]], dim=-1)
 
 
-def policy_fns(policy: torch.nn.Module, adversary: torch.nn.Module | None, sample: bool
-               ) -> tuple[ActionFn, XiFn | None]:
+def policy_fns(policy: torch.nn.Module, adversary: torch.nn.Module | None, sample: bool,
+               pre_squash: list[Tensor] | None = None) -> tuple[ActionFn, XiFn | None]:
     """The rollout's ``act`` / ``disturb`` from the networks: reparameterised draws when ``sample``,
-    the squashed means otherwise. ``adversary=None`` (DPG) gives ξ ≡ 0."""
+    the squashed means otherwise. ``adversary=None`` (DPG) gives ξ ≡ 0. With ``pre_squash`` (a list),
+    ``act`` appends the driving policy's pre-tanh means z [B, 2] of every step to it (the learner's
+    saturation penalty); the draws are the same either way."""
 
     def act(s: Tensor, _: int) -> Tensor:
-        return policy.sample(s) if sample else policy.mean_action(s)  # type: ignore[operator]
+        mean, log_std = policy.distribution(s)  # type: ignore[operator]
+        if pre_squash is not None:
+            pre_squash.append(mean)
+        if not sample:
+            return policy.squash(mean)  # type: ignore[operator]
+        eps = torch.randn(mean.shape, dtype=mean.dtype, device=mean.device)  # as policy.sample draws it
+        return policy.squash(mean + torch.exp(log_std) * eps)  # type: ignore[operator]
 
     if adversary is None:
         return act, None

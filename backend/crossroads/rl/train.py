@@ -162,6 +162,8 @@ class _Window:
     j_track: float = 0.0
     j_safe: float = 0.0
     j_pi: float = 0.0
+    saturated_share: float = 0.0
+    saturation: float = 0.0
     elapsed: float = 0.0  # [s] spent in this window before a resume
     started: float = 0.0  # time.monotonic() at the window's (re)start; not saved
 
@@ -171,17 +173,21 @@ class _Window:
         self.j_track += losses.j_track
         self.j_safe += losses.j_safe
         self.j_pi += losses.j_pi
+        self.saturated_share += losses.saturated_share
+        self.saturation += losses.saturation
 
     def row(self, iteration: int) -> dict[str, float]:
         n = max(self.n, 1)
         seconds = self.elapsed + time.monotonic() - self.started
         return {"iteration": iteration, "losses/J_v": self.j_v / n, "losses/J_track": self.j_track / n,
                 "losses/J_safe": self.j_safe / n, "losses/J_pi": self.j_pi / n,
+                "charts/saturated_share": self.saturated_share / n, "losses/saturation": self.saturation / n,
                 "charts/iterations_per_s": self.n / max(seconds, 1e-9), "time/elapsed_s": seconds}
 
     def state(self) -> dict[str, float]:
         return {"n": self.n, "j_v": self.j_v, "j_track": self.j_track, "j_safe": self.j_safe,
-                "j_pi": self.j_pi, "elapsed": self.elapsed + time.monotonic() - self.started}
+                "j_pi": self.j_pi, "saturated_share": self.saturated_share, "saturation": self.saturation,
+                "elapsed": self.elapsed + time.monotonic() - self.started}
 
 
 def warm_start(learner: Learner, source: Path) -> None:
