@@ -111,7 +111,7 @@ def test_saturation_penalty_is_measured_and_pulls_saturated_outputs_back(model, 
     assert lr.nets.policy.net[-1].bias[1].item() == pytest.approx(-6.0 + 1e-3, abs=1e-5)
 
 
-@pytest.mark.parametrize("variant", [{"pre_squash_weight": 10.0}, {"policy_loss": "log"}])
+@pytest.mark.parametrize("variant", [{"pre_squash_weight": 10.0}, {"policy_loss": "log"}, {"policy_loss": "sqrt"}])
 def test_the_policys_own_loss_leaves_the_adversary_step_alone(model, path_set, variant) -> None:
     batch = make_batch(path_set, 8, seed=11)
     runs = []

@@ -35,7 +35,7 @@ from crossroads.network.model import TASKS
 Algo = Literal["apg", "dpg"]
 XiPositions = Literal["offset", "step"]  # how ξ_x, ξ_y act over the model's horizon (rl.model)
 XI_POSITION_MODES: tuple[str, ...] = typing.get_args(XiPositions)
-PolicyLoss = Literal["mean", "log"]  # how the driving policy weighs the states of a batch (rl.learner)
+PolicyLoss = Literal["mean", "sqrt", "log"]  # how the driving policy weighs the states of a batch (rl.learner)
 
 
 def check_xi_positions(value: str) -> None:
@@ -89,9 +89,9 @@ class TrainConfig:
 
     policy_loss: PolicyLoss = "mean"
     """(choice) What the driving policy's step minimises over the batch's states s: "mean" (paper):
-    J_π = mean_s (J_track + ρ J_safe)(s); "log": mean_s log(1 + (J_track + ρ J_safe)(s)), whose
-    gradient weighs each state's by 1 / (1 + J(s)), so a relative improvement counts the same in
-    every state. Each state's best plan is the same under both; what differs is which states a
+    J_π = mean_s (J_track + ρ J_safe)(s); "log": mean_s log(1 + J(s)), whose gradient weighs each
+    state's by 1 / (1 + J(s)), so a relative improvement counts the same in every state; "sqrt":
+    mean_s 2 √(1 + J(s)), weights 1 / √(1 + J(s)), between the two. Each state's best plan is the same under both; what differs is which states a
     network of finite size fits first. Under "mean" the few states with J in the hundreds (a car
     close ahead) set the direction of every step: measured (session 11, 200 steps from run 5's
     APG), the plan on an empty road at the reference speed kept braking at full jerk (J_track 40 →

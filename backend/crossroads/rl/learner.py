@@ -89,8 +89,11 @@ class Learner:
         """What the driving policy's step minimises (``TrainConfig.policy_loss`` and
         ``pre_squash_weight``); ``j_pi`` itself when both are the paper's."""
         loss = j_pi
+        per_state = out.j_track + self.config.rho * out.j_safe
         if self.config.policy_loss == "log":
-            loss = torch.mean(torch.log1p(out.j_track + self.config.rho * out.j_safe))
+            loss = torch.mean(torch.log1p(per_state))
+        elif self.config.policy_loss == "sqrt":
+            loss = torch.mean(2.0 * torch.sqrt(1.0 + per_state))
         if self.config.pre_squash_weight > 0:
             loss = loss + self.config.pre_squash_weight * saturation
         return loss
