@@ -68,6 +68,8 @@ def main() -> None:
     parser.add_argument("--policy", default="rule", help="'rule' or a checkpoint (.pt)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--intersections", nargs="*", default=None)
+    parser.add_argument("--paths", nargs="*", default=None,
+                        help="only these path ids (e.g. left-2), on every intersection driven")
     parser.add_argument("--model-optimum", action="store_true",
                         help="drive the checkpoint's model optimum instead of its policy (slow)")
     args = parser.parse_args()
@@ -97,6 +99,8 @@ def main() -> None:
             with World(base) as probe:
                 paths = probe.candidates
             for k, path in enumerate(paths):
+                if args.paths is not None and path.id not in args.paths:
+                    continue
                 config = replace(base, ego_start=EgoStart(entrance_lane=path.entrance_lane))
                 with World(config) as world:
                     distance, speed, outcome = drive_one_path(world, k, make(), args.seed)
