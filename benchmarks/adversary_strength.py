@@ -74,7 +74,8 @@ def main() -> None:
     xi_v_rest: list[float] = []  # … of every other real (not padded) participant
     generator = torch.Generator().manual_seed(0)
     with World(to_world_config(spec, args.scenario.parent)) as world:
-        model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), xi_positions=xi_positions)
+        model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), xi_positions=xi_positions,
+                         preview=controller.preview)
         for obs, decision in probed_states(world, controller, run_seeds(spec, args.runs), args.every):
             sample = observation_sample(obs, int(decision.path_index), decision.speed_mode == "stop")
             batch = to_batch(sample)

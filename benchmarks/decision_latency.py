@@ -60,6 +60,8 @@ def main() -> None:
     parser.add_argument("--checkpoint", default=None)
     parser.add_argument("--samples", type=int, default=2000)
     parser.add_argument("--observations", type=int, default=400)
+    parser.add_argument("--preview", action="store_true",
+                        help="without --checkpoint: networks that read the path preview (TrainConfig.path_preview)")
     args = parser.parse_args()
     torch.set_num_threads(1)
 
@@ -67,7 +69,7 @@ def main() -> None:
         controller = IdcController.from_checkpoint(args.checkpoint)
     else:
         torch.manual_seed(0)
-        nets = make_networks("apg", hidden_layers=5, hidden_units=256)
+        nets = make_networks("apg", hidden_layers=5, hidden_units=256, preview=args.preview)
         controller = IdcController(nets.policy, nets.value)
     shielded = IdcController(controller.policy, controller.value, shield=True)
     observations, candidates = recorded_observations(args.observations, seed=0)
@@ -78,7 +80,7 @@ def main() -> None:
     batches = []
     for obs in observations:
         others = select_others(obs.ego, obs.perceived.observations, obs.perceived.kinds)
-        states = build_states(obs.ego, others, candidates, controller.speed_mode(obs))
+        states = build_states(obs.ego, others, candidates, controller.speed_mode(obs), controller.preview)
         batches.append(torch.from_numpy(states).float())
 
     def bare(batch: torch.Tensor) -> None:
@@ -106,7 +108,8 @@ def main() -> None:
     w50, w99, wmax = percentiles(whole)
     f50, f99, fmax = percentiles(forward)
     s50, s99, smax = percentiles(guarded)
-    print(f"{len(candidates)} candidate paths, networks 5 x 256 GELU, {args.samples} decisions, 1 thread")
+    print(f"{len(candidates)} candidate paths, networks 5 x 256 GELU"
+          f"{' with the path preview' if controller.preview else ''}, {args.samples} decisions, 1 thread")
     print(f"whole decision : p50 {w50:.3f} ms  p99 {w99:.3f} ms  max {wmax:.3f} ms")
     print(f"bare forward   : p50 {f50:.3f} ms  p99 {f99:.3f} ms  max {fmax:.3f} ms")
     print(f"with the shield: p50 {s50:.3f} ms  p99 {s99:.3f} ms  max {smax:.3f} ms (not the paper's; +shield)")

@@ -134,7 +134,7 @@ def main() -> None:
     modes: list[tuple[str, float]] = []  # (speed mode, vehicle ahead stood [s]) at the look-back
     looked_back: list[Samples] = []  # the state at the look-back of every collision
     with World(to_world_config(spec, args.scenario.parent)) as world:
-        model = IDCModel(path_tensors(world.candidates, dtype=torch.float32))
+        model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), preview=controller.preview)
         for seed in run_seeds(spec, args.runs):
             obs = world.reset(seed)
             controller.reset(world.candidates)

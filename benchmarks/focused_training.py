@@ -98,7 +98,7 @@ def main() -> None:
     show("before, training seeds:", before)
     print(f"states: {len(every)} seen, {len(hot)} in the last {args.last / 10:g} s before a collision")
 
-    learner = Learner(config, IDCModel(paths.tensors()))
+    learner = Learner(config, IDCModel(paths.tensors(), preview=config.path_preview))
     learner.nets.policy.load_state_dict(networks.policy.state_dict())
     learner.nets.value.load_state_dict(networks.value.state_dict())
     uniform, danger = ReplayBuffer(len(every), seed=0), ReplayBuffer(max(len(hot), 1), seed=1)

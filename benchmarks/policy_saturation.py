@@ -44,7 +44,7 @@ def sampled_states(rounds: int, seed: int) -> tuple[Samples, PathSet]:
 def pre_squash_means(policy_file: Path, samples: Samples, paths: PathSet) -> np.ndarray:
     """z [N, 2]: the policy's pre-tanh means on the states."""
     networks, _ = load_networks(policy_file)
-    model = IDCModel(paths.tensors())
+    model = IDCModel(paths.tensors(), preview=networks.policy.preview)
     with torch.no_grad():
         mean, _ = networks.policy.distribution(model.initial_states(to_batch(samples)))
     return mean.numpy()

@@ -109,14 +109,14 @@ class ModelOptimumController(IdcController):
 
     def reset(self, candidates: Sequence[CandidatePath]) -> None:
         super().reset(candidates)
-        self._model = IDCModel(path_tensors(candidates), braking_floor=self.braking_floor)
+        self._model = IDCModel(path_tensors(candidates), braking_floor=self.braking_floor, preview=self.preview)
         self._plan = None
 
     def decide(self, observation: Observation) -> Decision:
         assert self._model is not None, "reset() first"
         mode = self.speed_mode(observation)
         others, kappa = observed_others(observation)
-        states = build_states(observation.ego, others, self._candidates, mode)
+        states = build_states(observation.ego, others, self._candidates, mode, self.preview)
         best, _, values = self.decide_states(states)
         f = lambda a: torch.as_tensor(np.asarray(a), dtype=torch.float32)[None]  # noqa: E731
         batch = StateBatch(f(observation.ego), f(others), f(kappa), torch.tensor([best]),

@@ -85,12 +85,14 @@ def main() -> None:
     print("full braking needs: " + ", ".join(f"{d:.1f} m from {v:g} m/s" for v, d in stopping.items()))
     for policy_file in args.policy:
         networks, _ = load_networks(Path(policy_file))
+        model.preview = networks.policy.preview  # the states its networks read
         ego = ego_t.clone()
         min_gap = torch.full((n,), math.inf)
         with torch.no_grad():
             for _ in range(args.steps):
-                x_track, _ = model.track(ego, path_index, stop)
-                ego = ego_step(ego, networks.policy.mean_action(assemble(ego, x_track, others_t)))
+                x_track, ref = model.track(ego, path_index, stop)
+                state = assemble(ego, x_track, others_t, model.preview_of(ego, ref, path_index, stop))
+                ego = ego_step(ego, networks.policy.mean_action(state))
                 gap = torch.linalg.norm(ego[:, :2] - leader, dim=-1) - 0.5 * (EGO_LENGTH_M + CAR_LENGTH_M)
                 min_gap = torch.where(has_leader, torch.minimum(min_gap, gap), min_gap)
         table = {cell: (float(g), float(e[2])) for cell, g, e in zip(cells, min_gap, ego)}

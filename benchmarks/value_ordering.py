@@ -56,7 +56,7 @@ def main() -> None:
     tracks: list[np.ndarray] = []  # J_track of the policy's plan on each path
     safes: list[np.ndarray] = []  # J_safe of the same plans
     with World(to_world_config(spec, args.scenario.parent)) as world:
-        model = IDCModel(path_tensors(world.candidates, dtype=torch.float32))
+        model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), preview=controller.preview)
         n_paths = len(world.candidates)
         if n_paths < 2:
             raise SystemExit(f"{args.scenario}: one candidate path, so the value network has nothing to choose")

@@ -70,6 +70,12 @@ OTHER_STATE_DIM: Final = 6  # [p_x, p_y, v, φ, L, W] per participant
 STATE_DIM: Final = EGO_STATE_DIM + TRACK_STATE_DIM + OTHER_STATE_DIM * (
     N_VEHICLES_OBSERVED + N_CYCLISTS_OBSERVED + N_PEDESTRIANS_OBSERVED
 )  # 108
+# (choice, not the paper's) The path preview that networks built with ``path_preview`` read after
+# the 108 values (idc.state): the reference 5-20 m ahead along the candidate path, since the
+# paper's x_track holds the nearest point only and the networks drop the ego's absolute pose.
+PREVIEW_DISTANCES_M: Final = (5.0, 10.0, 15.0, 20.0)  # [m] of arc length beyond the nearest point
+PREVIEW_FEATURES: Final = 3  # per distance: lateral offset in the ego frame, relative heading, v_ref
+PREVIEW_DIM: Final = PREVIEW_FEATURES * len(PREVIEW_DISTANCES_M)  # 12
 STEER_RATE_MAX: Final = 0.4  # [rad/s] |Δδ|
 JERK_MAX: Final = 4.5  # [m/s³] |Δa|
 STEER_MAX: Final = 0.4  # [rad] |δ|

@@ -234,3 +234,61 @@ def test_build_states_is_the_array_formula(candidates) -> None:
                                        np.broadcast_to(others.reshape(1, -1), (len(candidates), 96))], axis=1)
             for cands in (list(candidates), tuple(candidates)):  # a tuple is remembered by identity
                 assert S.build_states(e, others, cands, mode).tobytes() == expected.tobytes()
+
+
+def test_the_path_preview_numpy_and_torch_agree_and_leave_the_108_values_alone() -> None:
+    """build_states(..., preview=True) (online) and preview_torch (training) give the same 12 values:
+    the path 5-20 m ahead in the ego's frame, its heading and v_ref there."""
+    import torch
+
+    from crossroads.network import catalogue
+    from crossroads.sim.config import WorldConfig
+    from crossroads.sim.traffic import NO_TRAFFIC
+    from crossroads.sim.world import World
+
+    with World(WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", demand=NO_TRAFFIC,
+                           warmup_s=1.0)) as world:
+        candidates, obs = tuple(world.candidates), world.reset(0)
+    tensors = S.path_tensors(candidates, dtype=torch.float64)
+    rng = np.random.default_rng(0)
+    for trial in range(20):
+        path = candidates[trial % len(candidates)]
+        k = int(rng.integers(len(path.points)))
+        ego = np.array(obs.ego, dtype=np.float64)
+        ego[:2] = path.points[k] + rng.normal(0.0, 0.8, 2)
+        ego[S.PHI] = path.heading[k] + rng.normal(0.0, 0.2)
+        others = np.tile(S.pad_participant(ego), (S.N_OTHERS, 1))
+        mode = ("pass", "stop")[trial % 2]
+        states = S.build_states(ego, others, candidates, mode, preview=True)
+        assert states.shape == (len(candidates), S.PREVIEW_STATE_DIM)
+        assert np.array_equal(states[:, :STATE_DIM], S.build_states(ego, others, candidates, mode))
+        egos = torch.as_tensor(np.tile(ego, (len(candidates), 1)))
+        index = torch.arange(len(candidates))
+        ref = S.reference_points_torch(tensors, egos[:, :2], index, mode == "stop")
+        np.testing.assert_allclose(S.preview_torch(tensors, egos, ref, index, mode == "stop").numpy(),
+                                   states[:, S.PREVIEW], atol=1e-9)
+
+
+def test_the_path_preview_sees_the_turn_ahead() -> None:
+    """On the straight before a left turn's stop line, the points 15-20 m ahead lie to the left."""
+    from crossroads.network import catalogue
+    from crossroads.sim.config import WorldConfig
+    from crossroads.sim.traffic import NO_TRAFFIC
+    from crossroads.sim.world import World
+
+    with World(WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", demand=NO_TRAFFIC,
+                           warmup_s=1.0)) as world:
+        path = world.candidates[0]
+        obs = world.reset(0)
+    ego = np.array(obs.ego, dtype=np.float64)
+    k = int(np.searchsorted(path.s, path.s_stop_line - 5.0))
+    ego[:2], ego[S.PHI] = path.points[k], path.heading[k]
+    others = np.tile(S.pad_participant(ego), (S.N_OTHERS, 1))
+    lateral = S.build_states(ego, others, [path], "pass", preview=True)[0, S.PREVIEW][:S.N_PREVIEW]
+    assert abs(lateral[0]) < 0.05 and lateral[3] > lateral[2] > 0.5  # straight 5 m ahead, bending left beyond
+
+
+def test_networks_with_the_preview_refuse_states_without_it() -> None:
+    with pytest.raises(ValueError, match="path preview reads states of 120 values"):
+        S.network_input(np.zeros((2, STATE_DIM)), preview=True)
+    assert S.network_input(np.zeros((2, S.PREVIEW_STATE_DIM))).shape == (2, STATE_DIM)

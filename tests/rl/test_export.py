@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
+
 import torch
 from typer.testing import CliRunner
 
@@ -88,12 +90,16 @@ def test_warm_start_from_an_exported_model(tmp_path: Path, path_set, model) -> N
                                 "changed_from_defaults": {}, "missing": True}]
 
 
-def test_onnx_export_equals_torch(tmp_path: Path, path_set, model) -> None:
+@pytest.mark.parametrize("preview", [False, True], ids=["paper-state", "path-preview"])
+def test_onnx_export_equals_torch(tmp_path: Path, path_set, preview: bool) -> None:
+    from crossroads.rl.model import IDCModel
     from crossroads.rl.onnx_export import check_onnx, export_onnx
 
-    run = train(tiny(tmp_path, iterations=3, run_name="onnx"))
+    run = train(tiny(tmp_path, iterations=3, run_name="onnx", path_preview=preview))
     policy_path, value_path = export_onnx(run, tmp_path / "onnx")
+    model = IDCModel(path_set.tensors(), preview=preview)
     states = model.initial_states(make_batch(path_set, 64, seed=3)).numpy()
+    assert states.shape[1] == (120 if preview else 108)
     action_err, value_err = check_onnx(run, policy_path, value_path, states)
     assert action_err <= 1e-5 and value_err <= 1e-5
     result = CliRunner().invoke(app, ["onnx", str(run), "-o", str(tmp_path / "cli")])

@@ -129,3 +129,43 @@ def test_configs_from_before_the_nominal_floor_keep_the_adversary_alone() -> Non
     del old["nominal_floor"]
     assert TrainConfig.from_json(old).nominal_floor is False
     assert TrainConfig.from_json(TrainConfig().to_json()).nominal_floor is True
+
+
+def test_a_run_with_the_path_preview_warm_started_from_one_without_keeps_its_outputs_then_trains(
+        tmp_path: Path, path_set) -> None:
+    """Warm start into networks that read the path preview (TrainConfig.path_preview): the new inputs'
+    weights start at zero, so the first decisions are the source's; then the run trains them, and its
+    checkpoint drives through the online decision, which builds 120-value states for it."""
+    from crossroads.idc.decision import IdcController
+    from crossroads.idc.state import PREVIEW_STATE_DIM, STATE_DIM
+    from crossroads.rl.model import IDCModel
+    from crossroads.rl.networks import widen_first_layer
+
+    source = train(tiny(tmp_path, iterations=3, run_name="plain"))
+    plain, _ = load_networks(source)
+    batch = make_batch(path_set, 6, seed=2)
+    states = IDCModel(path_set.tensors(), preview=True).initial_states(batch)
+    assert states.shape == (6, PREVIEW_STATE_DIM)
+    assert torch.equal(states[:, :STATE_DIM], IDCModel(path_set.tensors()).initial_states(batch))
+
+    preview_run = train(tiny(tmp_path, iterations=3, run_name="preview", path_preview=True, init_from=source))
+    nets, config = load_networks(preview_run)
+    assert config.path_preview and nets.policy.net[0].in_features == PREVIEW_STATE_DIM
+    widened, _ = load_networks(source)
+    from crossroads.rl.networks import make_networks
+    fresh = make_networks("apg", 2, 32, preview=True)
+    fresh.policy.load_state_dict(widen_first_layer(widened.policy.state_dict(), fresh.policy))
+    assert torch.allclose(fresh.policy.mean_action(states), plain.policy.mean_action(states[:, :STATE_DIM]))
+    first = nets.policy.net[0].weight.detach()
+    assert first[:, STATE_DIM:].abs().sum() > 0  # training gave the preview inputs weight
+
+    from crossroads.network import catalogue
+    from crossroads.sim.config import WorldConfig
+    from crossroads.sim.world import World
+    controller = IdcController(nets.policy, nets.value)
+    assert controller.preview
+    with World(WorldConfig(net_file=catalogue.build(INTERSECTION), task="left", warmup_s=5.0)) as world:
+        obs = world.reset(0)
+        controller.reset(world.candidates)
+        decision = controller.decide(obs)
+    assert decision.action.shape == (2,) and len(decision.path_values) == len(world.candidates)

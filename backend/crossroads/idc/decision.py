@@ -38,6 +38,8 @@ class IdcController:
         self._dtype = next(value.parameters()).dtype
         self._candidates: tuple[CandidatePath, ...] = ()
         self.shield = shield
+        # networks built with the path preview read 120-value states (crossroads.idc.state)
+        self.preview = bool(getattr(policy, "preview", False))
 
     @classmethod
     def from_checkpoint(cls, path: str | Path, shield: bool = False) -> IdcController:
@@ -61,7 +63,8 @@ class IdcController:
         )
 
     def decide_states(self, states: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
-        """(τ*, action (2,), values (n,)) for the states of the n candidate paths (n, 108)."""
+        """(τ*, action (2,), values (n,)) for the states of the n candidate paths (n, 108; 120 with
+        the path preview)."""
         with torch.inference_mode():
             batch = torch.from_numpy(np.ascontiguousarray(states)).to(self._dtype)
             values = self.value(batch)
@@ -76,7 +79,7 @@ class IdcController:
         else:
             others, kappa = select_others(observation.ego, observation.perceived.observations,
                                           observation.perceived.kinds), None
-        states = build_states(observation.ego, others, self._candidates, mode)
+        states = build_states(observation.ego, others, self._candidates, mode, self.preview)
         best, action, values = self.decide_states(states)
         if kappa is None:
             return Decision(action, best, mode, values)

@@ -22,6 +22,17 @@ unchanged, while the errors do not depend on how the intersection is oriented. �
 (v_ref from the pass or stop speed profile, the only thing the speed mode changes, SPEC §7) and
 Δφ = φ − φ_ref wrapped to ±π (``arrays.wrap_angle``; the numpy fast path of build_states wraps
 into [-π, π), which differs only exactly at ±π).
+
+The path preview **(choice, not the paper's; off unless asked for)**: states built with
+``preview=True`` carry 12 more values after the 108, ``108:120``: for each of
+``constants.PREVIEW_DISTANCES_M`` (5, 10, 15, 20 m of arc length beyond the reference point) the
+path point's lateral offset in the ego's frame [m] (positive left), then for each the path's heading
+there relative to the ego's [rad, wrapped], then for each the speed profile's v_ref there [m/s].
+Why: x_track describes the nearest point only and :func:`network_input` drops the ego's absolute
+pose, so a network fed the paper's 108 values cannot tell that the path bends or that the pass
+profile drops at the stop line a few metres ahead (measured, docs/measurements/why-the-models-crash.md
+§14). Networks built with ``path_preview`` read them; the model's cost never does, and networks
+without it ignore them (they read the first 108), so a preview state serves both.
 """
 
 from __future__ import annotations
@@ -44,6 +55,8 @@ from crossroads.constants import (
     N_VEHICLES_OBSERVED,
     OTHER_STATE_DIM,
     PARTICIPANT_KINDS,
+    PREVIEW_DIM,
+    PREVIEW_DISTANCES_M,
     STATE_DIM,
     STEER_MAX,
     TRACK_STATE_DIM,
@@ -71,6 +84,9 @@ del _row, _kind
 VEHICLES = slice(OTHERS.start, OTHERS.start + OTHER_STATE_DIM * SLOTS["vehicle"])
 CYCLISTS = slice(VEHICLES.stop, VEHICLES.stop + OTHER_STATE_DIM * SLOTS["cyclist"])
 PEDESTRIANS = slice(CYCLISTS.stop, STATE_DIM)
+PREVIEW = slice(STATE_DIM, STATE_DIM + PREVIEW_DIM)  # the path preview of preview states
+PREVIEW_STATE_DIM = STATE_DIM + PREVIEW_DIM  # 120
+N_PREVIEW = len(PREVIEW_DISTANCES_M)
 KIND_OF_SLOT: tuple[str, ...] = tuple(k for k in KINDS for _ in range(SLOTS[k]))  # 16 entries
 
 # named indices
@@ -194,6 +210,7 @@ class Reference(NamedTuple):
     y: Any  # [m]
     heading: Any  # [rad]
     v: Any  # [m/s]
+    s: Any = None  # arc length of the point [m] (reference_points_torch with arc lengths only)
 
 
 HINT_BACK = 20  # (choice) points searched behind the hint (10 m at 0.5 m spacing)
@@ -249,6 +266,7 @@ class PathTensors(NamedTuple):
     heading: Any  # (P, N)
     v_pass: Any  # (P, N)
     v_stop: Any  # (P, N)
+    s: Any = None  # (P, N) arc length [m] (the path preview needs it)
 
 
 def path_tensors(candidates: Sequence[CandidatePath], dtype: Any = None, device: Any = None) -> PathTensors:
@@ -265,7 +283,8 @@ def path_tensors(candidates: Sequence[CandidatePath], dtype: Any = None, device:
         return torch.as_tensor(np.stack([pad(np.asarray(a, np.float64)) for a in arrs]), dtype=dtype, device=device)
 
     return PathTensors(t([c.points for c in candidates]), t([c.heading for c in candidates]),
-                       t([c.v_pass for c in candidates]), t([c.v_stop for c in candidates]))
+                       t([c.v_pass for c in candidates]), t([c.v_stop for c in candidates]),
+                       t([c.s for c in candidates]))
 
 
 def reference_points_torch(
@@ -310,7 +329,54 @@ def reference_points_torch(
         dh = torch.remainder(h1 - h0 + math.pi, 2.0 * math.pi) - math.pi
         h = torch.remainder(h0 + w * dh + math.pi, 2.0 * math.pi) - math.pi
         v = speed[rows, i] + w * (speed[rows, i + 1] - speed[rows, i])
-        return Reference(i, foot[rows, i, 0], foot[rows, i, 1], h, v)
+        s = None
+        if paths.s is not None:
+            arc = paths.s.to(xy.dtype)[path_index]
+            s = arc[rows, i] + w * (arc[rows, i + 1] - arc[rows, i])
+        return Reference(i, foot[rows, i, 0], foot[rows, i, 1], h, v, s)
+
+
+def preview_features(ego: Any, ahead_x: Any, ahead_y: Any, ahead_heading: Any, ahead_v: Any) -> Any:
+    """The path preview ``[..., 12]`` of ``ego[..., 8]`` from the path's points ahead (each ``[..., 4]``):
+    their lateral offsets in the ego frame, their headings relative to the ego's (wrapped), their
+    v_ref (module docstring). Numpy or torch (differentiable in the ego's pose)."""
+    xp = ops(ego, ahead_x)
+    px, py, phi = ego[..., PX][..., None], ego[..., PY][..., None], ego[..., PHI][..., None]
+    lateral = -xp.sin(phi) * (ahead_x - px) + xp.cos(phi) * (ahead_y - py)
+    return xp.concat([lateral, xp.wrap(ahead_heading - phi), ahead_v], axis=-1)
+
+
+def preview_torch(paths: PathTensors, ego: Any, ref: Reference, path_index: Any, stop: Any) -> Any:
+    """The path preview ``[B, 12]`` of a batch (torch): the points ``PREVIEW_DISTANCES_M`` beyond each
+    reference point ``ref`` (from :func:`reference_points_torch`) along path ``path_index[b]``,
+    clamped to the path's end. The points are data (no gradient); the features are differentiable
+    in the ego's pose."""
+    import torch
+
+    if paths.s is None or ref.s is None:
+        raise ValueError("the path preview needs the paths' arc lengths (PathTensors.s): build them with path_tensors")
+    with torch.no_grad():
+        dtype = ref.x.dtype
+        arc = paths.s.to(dtype)[path_index]  # (B, N)
+        n = arc.shape[1]
+        distances = torch.as_tensor(PREVIEW_DISTANCES_M, dtype=dtype, device=arc.device)
+        target = torch.minimum(ref.s[:, None] + distances, arc[:, -1:])  # (B, K)
+        j = (torch.searchsorted(arc.contiguous(), target.contiguous(), right=True) - 1).clamp(0, max(n - 2, 0))
+        j1 = (j + 1).clamp(max=n - 1)
+        s0, s1 = arc.gather(1, j), arc.gather(1, j1)
+        w = torch.where(s1 > s0, (target - s0) / torch.where(s1 > s0, s1 - s0, torch.ones_like(s0)),
+                        torch.zeros_like(s0)).clamp(0.0, 1.0)
+        pts = paths.points.to(dtype)[path_index]  # (B, N, 2)
+        x = pts[..., 0].gather(1, j) + w * (pts[..., 0].gather(1, j1) - pts[..., 0].gather(1, j))
+        y = pts[..., 1].gather(1, j) + w * (pts[..., 1].gather(1, j1) - pts[..., 1].gather(1, j))
+        head = paths.heading.to(dtype)[path_index]
+        h0 = head.gather(1, j)
+        dh = torch.remainder(head.gather(1, j1) - h0 + math.pi, 2.0 * math.pi) - math.pi
+        h = torch.remainder(h0 + w * dh + math.pi, 2.0 * math.pi) - math.pi
+        stop_t = torch.as_tensor(stop, device=arc.device, dtype=torch.bool).expand(arc.shape[0])
+        speed = torch.where(stop_t[:, None], paths.v_stop.to(dtype)[path_index], paths.v_pass.to(dtype)[path_index])
+        v = speed.gather(1, j) + w * (speed.gather(1, j1) - speed.gather(1, j))
+    return preview_features(ego, x, y, h, v)
 
 
 # --- building states for every candidate (online, numpy) ----------------------------------------------
@@ -324,6 +390,9 @@ class _Stacked(NamedTuple):
     aby: np.ndarray
     inv_len2: np.ndarray  # (C, M) 1/|ab|² (0 on padding → t = 0)
     pack: dict[str, np.ndarray]  # mode → (C·M, 8): ax, ay, abx, aby, h0, dh, v0, dv per segment
+    s0: np.ndarray  # (C, M) arc length at each segment's start (the path preview)
+    ds: np.ndarray  # (C, M) each segment's length in arc length
+    ahead: tuple[dict[str, np.ndarray], ...]  # per candidate: s, x, y, unwrapped heading, pass, stop
 
 
 _CACHE: dict[tuple[int, ...], _Stacked] = {}
@@ -372,9 +441,15 @@ def _stacked_of(candidates: Sequence[CandidatePath]) -> _Stacked:
         v0, dv = np.stack([seg(a, True) for a in v]), np.stack([seg(a, False) for a in v])
         pack[mode] = np.stack([pts[..., 0], pts[..., 1], ab[..., 0], ab[..., 1], h0, dh, v0, dv],
                               axis=-1).reshape(-1, 8)
+    arcs = [np.asarray(c.s, np.float64) for c in candidates]
+    ahead = tuple({"s": np.asarray(c.s, np.float64), "x": np.asarray(c.points, np.float64)[:, 0],
+                   "y": np.asarray(c.points, np.float64)[:, 1], "heading": np.unwrap(h),
+                   "pass": np.asarray(c.v_pass, np.float64), "stop": np.asarray(c.v_stop, np.float64)}
+                  for c, h in zip(candidates, head))
     stacked = _Stacked(
         tuple(candidates), pts[..., 0].copy(), pts[..., 1].copy(), ab[..., 0].copy(), ab[..., 1].copy(),
         np.where(len2 > 0, 1.0 / np.where(len2 > 0, len2, 1.0), 0.0), pack,
+        np.stack([seg(a, True) for a in arcs]), np.stack([seg(a, False) for a in arcs]), ahead,
     )
     if len(_CACHE) >= _CACHE_SIZE:
         _CACHE.pop(next(iter(_CACHE)))
@@ -419,8 +494,10 @@ def references(candidates: Sequence[CandidatePath], x: float, y: float, mode: st
 
 def build_states(
     ego: ArrayLike, others16: ArrayLike, candidates: Sequence[CandidatePath], mode: str,
+    preview: bool = False,
 ) -> FloatArray:
-    """One state per candidate path, ``(n_candidates, 108)``: shared x_ego and x_other, own x_track.
+    """One state per candidate path, ``(n_candidates, 108)``: shared x_ego and x_other, own x_track;
+    with ``preview``, ``(n_candidates, 120)``: each followed by its path preview (module docstring).
 
     ``mode`` ("pass" | "stop") picks the speed profile of Δv. Vectorised over the candidates' points
     (their segment arrays are stacked once and cached per tuple of candidates).
@@ -432,7 +509,7 @@ def build_states(
     i, t = _nearest_segments(st, px, py)
     m = t.shape[1]
     flat = [k + c * m for c, k in enumerate(i.tolist())]
-    out = np.empty((len(flat), STATE_DIM))
+    out = np.empty((len(flat), PREVIEW_STATE_DIM if preview else STATE_DIM))
     out[:, EGO] = e
     out[:, OTHERS] = np.asarray(others16, dtype=np.float64).reshape(-1)
     # x_track of the few candidates on Python floats: the arithmetic of references() and
@@ -442,7 +519,23 @@ def build_states(
         _track(px, py, vx, phi, w, *seg)
         for w, seg in zip(t.ravel()[flat].tolist(), st.pack[mode][flat].tolist())
     ]
+    if preview:
+        out[:, PREVIEW] = _preview_numpy(st, e, i, t.ravel()[flat], mode)
     return out
+
+
+def _preview_numpy(st: _Stacked, ego: FloatArray, i: NDArray[np.intp], w: FloatArray, mode: str) -> FloatArray:
+    """The path preview ``(C, 12)`` of every candidate, the foot of candidate c a fraction ``w[c]``
+    along its segment ``i[c]`` (the numbers of :func:`preview_torch`, up to rounding)."""
+    rows = np.arange(len(i))
+    arc = st.s0[rows, i] + w * st.ds[rows, i]
+    ahead = np.empty((4, len(i), N_PREVIEW))
+    for c, path in enumerate(st.ahead):
+        target = np.minimum(arc[c] + np.asarray(PREVIEW_DISTANCES_M), path["s"][-1])
+        for row, key in enumerate(("x", "y", "heading", mode)):
+            ahead[row, c] = np.interp(target, path["s"], path[key])
+    heading = np.mod(ahead[2] + math.pi, 2.0 * math.pi) - math.pi
+    return preview_features(np.broadcast_to(ego, (len(i), ego.shape[-1])), ahead[0], ahead[1], heading, ahead[3])
 
 
 def _track(px: float, py: float, vx: float, phi: float, w: float, ax: float, ay: float, abx: float,
@@ -465,8 +558,14 @@ TRACK_POSITION_SCALE_M = 2.0  # (choice) Δx, Δy [m] per unit
 ANGLE_SCALE = math.pi  # relative headings and Δφ [rad] per unit (wrapped angles → [-1, 1))
 
 
-def network_input(states: Any) -> Any:
-    """Normalised, pose-invariant network input ``[..., 108]`` from states ``[..., 108]`` (numpy/torch).
+PREVIEW_LATERAL_SCALE_M = 5.0  # (choice) the preview's lateral offsets [m] per unit
+
+
+def network_input(states: Any, preview: bool = False) -> Any:
+    """Normalised, pose-invariant network input ``[..., 108]`` from states ``[..., 108]`` (numpy/torch);
+    with ``preview``, ``[..., 120]`` from preview states ``[..., 120]`` (module docstring), the preview
+    as lateral offsets / 5 m, relative headings / π and v_ref / 10 m/s. Without it a preview state's
+    last 12 values are ignored.
 
     **(choice)** Everything is expressed relative to the ego so one policy fits every intersection
     and approach: the ego's absolute position and heading are replaced by 0 (slots 0, 1, 4 kept
@@ -478,6 +577,10 @@ def network_input(states: Any) -> Any:
     """
     xp = ops(states)
     states = xp.asarray(states, like=states)
+    if preview and states.shape[-1] != PREVIEW_STATE_DIM:
+        raise ValueError(f"a network with the path preview reads states of {PREVIEW_STATE_DIM} values (the "
+                         f"{STATE_DIM} of SPEC §4 and the preview: build_states(..., preview=True), "
+                         f"IDCModel(preview=True)); got {states.shape[-1]}")
     px, py, phi = states[..., PX], states[..., PY], states[..., PHI]
     zero = xp.zeros_like(px)
     ego = xp.stack([zero, zero, states[..., VX] / SPEED_SCALE_MPS, states[..., VY] / SPEED_SCALE_MPS, zero,
@@ -492,4 +595,9 @@ def network_input(states: Any) -> Any:
                     o[..., O_V] / SPEED_SCALE_MPS, xp.wrap(o[..., O_PHI] - phi[..., None]) / ANGLE_SCALE,
                     o[..., O_L] / SIZE_SCALE_M, o[..., O_W] / SIZE_SCALE_M], axis=-1)
     rel = rel.reshape(tuple(rel.shape[:-2]) + (N_OTHERS * OTHER_STATE_DIM,))
-    return xp.concat([ego, track, rel], axis=-1)
+    if not preview:
+        return xp.concat([ego, track, rel], axis=-1)
+    ahead = states[..., PREVIEW]
+    scale = xp.asarray([PREVIEW_LATERAL_SCALE_M] * N_PREVIEW + [ANGLE_SCALE] * N_PREVIEW
+                       + [SPEED_SCALE_MPS] * N_PREVIEW, like=ahead)
+    return xp.concat([ego, track, rel, ahead / scale], axis=-1)

@@ -146,18 +146,17 @@ def export_command(
 def onnx_command(
     model: Annotated[Path, typer.Argument(metavar="MODEL.pt", help="a model file or checkpoint")],
     out: Annotated[Path, typer.Option("-o", "--out", metavar="DIR", help="where policy.onnx and value.onnx go")],
-    samples: Annotated[int, typer.Option(help="random states the export is checked on")] = 512,
+    samples: Annotated[int, typer.Option(help="IDC states (of seeded rule-driven left turns in traffic) the export is checked on")] = 512,
 ) -> None:
     """Export the policy and value networks to ONNX and check them against torch (within 1e-5)."""
-    import numpy as np
-
-    from crossroads.rl.onnx_export import TOLERANCE, check_onnx, export_onnx
+    from crossroads.rl.checkpoint import load_networks
+    from crossroads.rl.onnx_export import TOLERANCE, check_onnx, export_onnx, recorded_states
 
     try:
         policy_path, value_path = export_onnx(model, out)
     except (FileNotFoundError, ValueError) as exc:
         raise fail(str(exc)) from None
-    states = np.random.default_rng(0).normal(size=(samples, 108))
+    states = recorded_states(samples, load_networks(model)[1].path_preview)
     action_err, value_err = check_onnx(model, policy_path, value_path, states)
     typer.echo(f"{policy_path}\n{value_path}\nmax |onnx - torch| / max(1, |torch|) on {samples} states: "
                f"action {action_err:.2e}, value {value_err:.2e}")

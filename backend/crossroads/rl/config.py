@@ -110,6 +110,18 @@ class TrainConfig:
     the model's optimum). 0 (paper): no penalty."""
 
     # --- networks (Sec. V-A) ---------------------------------------------------------------------
+    path_preview: bool = False
+    """(choice) The networks also read the candidate path 5, 10, 15 and 20 m ahead of the reference
+    point (its lateral offset and heading in the ego's frame and its v_ref: 12 inputs after the
+    paper's 108, ``idc.state``). The paper's x_track holds the nearest point only and the networks
+    drop the ego's absolute pose (one network for six intersections), so without the preview a policy
+    cannot steer into a turn before it has begun nor slow before the pass profile drops: measured
+    (session 12, docs/measurements/why-the-models-crash.md §14), run 16's policy began to steer only
+    once inside the Bezier of c_three_lane left-2 and swung 1.42 m wide, where a sequence steering in
+    early stays within 0.18 m; run 17, 4 000 iterations from run 16 with the preview, stayed within
+    0.38 m there and reached the exit on all 38 paths (run 16: 33). A warm start from networks
+    without it keeps their outputs (the new inputs' weights start at zero). False (paper): the 108
+    values only."""
     hidden_layers: int = HIDDEN_LAYERS
     """Hidden layers of every MLP (paper: 5)."""
     hidden_units: int = HIDDEN_UNITS

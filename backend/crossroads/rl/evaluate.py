@@ -43,7 +43,7 @@ def evaluate_tar(nets: Networks, config: TrainConfig) -> dict[str, float]:
             for _ in range(config.tar_steps):
                 others, _ = observed_others(obs)
                 mode = speed_mode(obs)
-                states = build_states(obs.ego, others, cands, mode)
+                states = build_states(obs.ego, others, cands, mode, config.path_preview)
                 with torch.no_grad():
                     s = torch.as_tensor(states, dtype=torch.float32, device=device)
                     best = int(torch.argmin(nets.value(s)))

@@ -60,7 +60,7 @@ from torch import Tensor
 
 from crossroads.constants import OTHER_DECEL_MPS2
 from crossroads.idc.constraints import SAFETY_MARGIN_M, penalty, road_constraints, safety_constraints
-from crossroads.idc.state import N_OTHERS, PathTensors, reference_points_torch, tracking_error
+from crossroads.idc.state import N_OTHERS, PathTensors, Reference, preview_torch, reference_points_torch, tracking_error
 from crossroads.idc.utility import utility
 from crossroads.rl.buffer import StateBatch
 from crossroads.rl.config import XiPositions, check_xi_positions
@@ -81,31 +81,38 @@ class Rollout(NamedTuple):
     # horizon [m], the safety margin left out (> 0: the bodies' circles meet); no gradient
 
 
-def assemble(ego: Tensor, track: Tensor, others: Tensor) -> Tensor:
-    """s [B, 108] from ego [B, 8], x_track [B, 4], others [B, 16, 6]."""
-    return torch.cat([ego, track, others.reshape(others.shape[0], -1)], dim=-1)
+def assemble(ego: Tensor, track: Tensor, others: Tensor, preview: Tensor | None = None) -> Tensor:
+    """s [B, 108] from ego [B, 8], x_track [B, 4], others [B, 16, 6]; [B, 120] with a path preview
+    [B, 12] (``idc.state``)."""
+    parts = [ego, track, others.reshape(others.shape[0], -1)]
+    return torch.cat(parts if preview is None else parts + [preview], dim=-1)
 
 
 class IDCModel:
     """The model f over a fixed set of candidate paths (padded, see ``idc.state.path_tensors``)."""
 
     def __init__(self, paths: PathTensors, xi_positions: XiPositions = "offset", nominal_floor: bool = False,
-                 braking_floor: bool = False) -> None:
+                 braking_floor: bool = False, preview: bool = False) -> None:
         check_xi_positions(xi_positions)
         self.paths = paths
+        self.preview = preview  # states carry the path preview (networks with path_preview read it)
         self.xi_positions = xi_positions
         self.nominal_floor = nominal_floor
         self.braking_floor = braking_floor
 
-    def track(self, ego: Tensor, path: Tensor, stop: Tensor) -> tuple[Tensor, Tensor]:
-        """(x_track [B, 4], road constraints g [B, 4]) of ``ego`` against its path and mode."""
+    def track(self, ego: Tensor, path: Tensor, stop: Tensor) -> tuple[Tensor, Reference]:
+        """(x_track [B, 4], the reference points) of ``ego`` against its path and mode."""
         ref = reference_points_torch(self.paths, ego[:, :2], path, stop)
         return tracking_error(ego, ref.x, ref.y, ref.heading, ref.v), ref
 
+    def preview_of(self, ego: Tensor, ref: Reference, path: Tensor, stop: Tensor) -> Tensor | None:
+        """The path preview [B, 12] of ``ego`` beyond its reference points, if this model has one."""
+        return preview_torch(self.paths, ego, ref, path, stop) if self.preview else None
+
     def initial_states(self, batch: StateBatch) -> Tensor:
-        """s_0 [B, 108] of a batch."""
-        x_track, _ = self.track(batch.ego, batch.path, batch.stop)
-        return assemble(batch.ego, x_track, batch.others)
+        """s_0 [B, 108] of a batch ([B, 120] with the preview)."""
+        x_track, ref = self.track(batch.ego, batch.path, batch.stop)
+        return assemble(batch.ego, x_track, batch.others, self.preview_of(batch.ego, ref, batch.path, batch.stop))
 
     def rollout(self, batch: StateBatch, act: ActionFn, disturb: XiFn | None, horizon: int) -> Rollout:
         """Roll the batch out ``horizon`` steps with ``act`` (and ``disturb``, or ξ ≡ 0)."""
@@ -129,7 +136,7 @@ class IDCModel:
                 course = other_step(course, kappa, _without_positions(xi))
                 others = _displaced(course, xi)
             x_track, ref = self.track(ego, batch.path, batch.stop)
-            s = assemble(ego, x_track, others)
+            s = assemble(ego, x_track, others, self.preview_of(ego, ref, batch.path, batch.stop))
             g_safe = safety_constraints(s)
             if floor:
                 nominal = other_step(nominal, kappa, None)

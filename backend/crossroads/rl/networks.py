@@ -17,6 +17,10 @@ layers (paper: 5 × 256).
   the same way. Virtual (padded) participants get a ξ too; they are too far away for it to matter.
 * Value v_w(s, τ): the same trunk, one output through ReLU (a non-negative path value). The path τ
   enters through x_track of s (each candidate path gives its own state).
+* ``preview`` **(choice, off by default)**: the networks also read the path preview of preview states
+  (``idc.state``, 120 values: the path 5-20 m ahead), 12 more inputs. :func:`widen_first_layer`
+  loads a network trained without it into one with it, the new inputs' weights zero, so the warm
+  start computes exactly what the source did until training gives them weight.
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor, nn
 
-from crossroads.constants import JERK_MAX, STATE_DIM, STEER_RATE_MAX, XI_RANGES
+from crossroads.constants import JERK_MAX, PREVIEW_DIM, STATE_DIM, STEER_RATE_MAX, XI_RANGES
 from crossroads.idc.state import N_OTHERS, network_input
 
 LOG_STD_MIN = -5.0  # (choice) std ≥ e⁻⁵ ≈ 0.007 in z
@@ -57,10 +61,11 @@ class SquashedGaussianPolicy(nn.Module):
     """s[..., 108] → a diagonal Gaussian in z, squashed by tanh onto [low, high] per output."""
 
     def __init__(self, low: tuple[float, ...], high: tuple[float, ...], hidden_layers: int,
-                 hidden_units: int) -> None:
+                 hidden_units: int, preview: bool = False) -> None:
         super().__init__()
         self.dim = len(low)
-        self.net = mlp(STATE_DIM, 2 * self.dim, hidden_layers, hidden_units)
+        self.preview = preview
+        self.net = mlp(input_width(preview), 2 * self.dim, hidden_layers, hidden_units)
         with torch.no_grad():
             out = self.net[-1]
             assert isinstance(out, nn.Linear)
@@ -71,7 +76,7 @@ class SquashedGaussianPolicy(nn.Module):
 
     def distribution(self, states: Tensor) -> tuple[Tensor, Tensor]:
         """(mean, log_std) of z, each ``[..., dim]``."""
-        out = self.net(network_input(states).to(self.low.dtype))
+        out = self.net(network_input(states, self.preview).to(self.low.dtype))
         mean, log_std = out[..., : self.dim], out[..., self.dim:]
         return mean, torch.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX)
 
@@ -97,15 +102,15 @@ class SquashedGaussianPolicy(nn.Module):
 class DrivingPolicy(SquashedGaussianPolicy):
     """π_θ: u = [Δδ, Δa] within ±0.4 rad/s, ±4.5 m/s³."""
 
-    def __init__(self, hidden_layers: int, hidden_units: int) -> None:
-        super().__init__(ACTION_LOW, ACTION_HIGH, hidden_layers, hidden_units)
+    def __init__(self, hidden_layers: int, hidden_units: int, preview: bool = False) -> None:
+        super().__init__(ACTION_LOW, ACTION_HIGH, hidden_layers, hidden_units, preview)
 
 
 class Adversary(SquashedGaussianPolicy):
     """π_φ: ξ for each of the 16 participant slots, shape ``[..., 16, 4]`` (ξ_x, ξ_y, ξ_v, ξ_φ)."""
 
-    def __init__(self, hidden_layers: int, hidden_units: int) -> None:
-        super().__init__(XI_LOW * N_OTHERS, XI_HIGH * N_OTHERS, hidden_layers, hidden_units)
+    def __init__(self, hidden_layers: int, hidden_units: int, preview: bool = False) -> None:
+        super().__init__(XI_LOW * N_OTHERS, XI_HIGH * N_OTHERS, hidden_layers, hidden_units, preview)
 
     def mean_action(self, states: Tensor) -> Tensor:
         out = super().mean_action(states)
@@ -119,9 +124,10 @@ class Adversary(SquashedGaussianPolicy):
 class ValueNet(nn.Module):
     """v_w(s, τ) ≥ 0: the predicted J_track of following path τ (in x_track of s) from s."""
 
-    def __init__(self, hidden_layers: int, hidden_units: int) -> None:
+    def __init__(self, hidden_layers: int, hidden_units: int, preview: bool = False) -> None:
         super().__init__()
-        self.net = mlp(STATE_DIM, 1, hidden_layers, hidden_units)
+        self.preview = preview
+        self.net = mlp(input_width(preview), 1, hidden_layers, hidden_units)
         with torch.no_grad():  # (choice) start in ReLU's active region, so no sample begins dead
             out = self.net[-1]
             assert isinstance(out, nn.Linear)
@@ -129,7 +135,7 @@ class ValueNet(nn.Module):
 
     def forward(self, states: Tensor) -> Tensor:
         param = next(self.parameters())
-        return torch.relu(self.net(network_input(states).to(param.dtype))).squeeze(-1)
+        return torch.relu(self.net(network_input(states, self.preview).to(param.dtype))).squeeze(-1)
 
 
 class Networks(NamedTuple):
@@ -140,13 +146,36 @@ class Networks(NamedTuple):
     adversary: Adversary | None
 
 
-def make_networks(algo: str, hidden_layers: int, hidden_units: int, device: str | torch.device = "cpu"
-                  ) -> Networks:
-    """Fresh networks (parameters drawn from torch's global RNG: seed it first)."""
-    policy = DrivingPolicy(hidden_layers, hidden_units).to(device)
-    value = ValueNet(hidden_layers, hidden_units).to(device)
-    adversary = Adversary(hidden_layers, hidden_units).to(device) if algo == "apg" else None
+def make_networks(algo: str, hidden_layers: int, hidden_units: int, device: str | torch.device = "cpu",
+                  preview: bool = False) -> Networks:
+    """Fresh networks (parameters drawn from torch's global RNG: seed it first); ``preview``: they
+    read the path preview too (module docstring)."""
+    policy = DrivingPolicy(hidden_layers, hidden_units, preview).to(device)
+    value = ValueNet(hidden_layers, hidden_units, preview).to(device)
+    adversary = Adversary(hidden_layers, hidden_units, preview).to(device) if algo == "apg" else None
     return Networks(policy, value, adversary)
+
+
+def input_width(preview: bool) -> int:
+    """Inputs of a network: the 108 of SPEC §4, and the 12 of the path preview with ``preview``."""
+    return STATE_DIM + (PREVIEW_DIM if preview else 0)
+
+
+FIRST_LAYER_WEIGHT = "net.0.weight"
+
+
+def widen_first_layer(state: dict[str, Tensor], net: nn.Module) -> dict[str, Tensor]:
+    """``state`` (a state dict) fitted to ``net``: a first layer narrower than ``net``'s (a network
+    trained without the path preview, loaded into one with it) gets zero weights for the extra
+    inputs, so the result computes exactly what ``state`` did. Anything else passes unchanged
+    (``load_state_dict`` then reports a real mismatch)."""
+    own = net.state_dict().get(FIRST_LAYER_WEIGHT)
+    weight = state.get(FIRST_LAYER_WEIGHT)
+    if own is None or weight is None or weight.shape[1] >= own.shape[1] or weight.shape[0] != own.shape[0]:
+        return state
+    wider = torch.zeros_like(own)
+    wider[:, : weight.shape[1]] = weight
+    return {**state, FIRST_LAYER_WEIGHT: wider}
 
 
 def parameter_count(module: nn.Module) -> int:

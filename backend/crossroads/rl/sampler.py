@@ -163,7 +163,8 @@ class EpisodeSampler:
         self._phases: dict[tuple[str, str], tuple[float, ...]] = {}
         self._nets: dict[str, str] = {}
         with torch.random.fork_rng(devices=[]):  # leave the learner's global torch RNG untouched
-            self.policy = DrivingPolicy(self.config.hidden_layers, self.config.hidden_units)
+            self.policy = DrivingPolicy(self.config.hidden_layers, self.config.hidden_units,
+                                        self.config.path_preview)
         self.policy.eval()
         self._torch = torch
 
@@ -239,7 +240,7 @@ class EpisodeSampler:
                 if rule is not None:
                     action = rule.decide(obs).action
                 else:
-                    state = build_states(obs.ego, others, [path], mode)
+                    state = build_states(obs.ego, others, [path], mode, self.config.path_preview)
                     with torch.no_grad():
                         mean = self.policy.mean_action(torch.as_tensor(state, dtype=torch.float32))[0]
                     action = clip_action(mean.numpy().astype(np.float64) + noise_scale * rng.standard_normal(2))

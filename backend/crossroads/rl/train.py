@@ -37,6 +37,7 @@ from crossroads.rl.evaluate import evaluate_tar
 from crossroads.rl.learner import Learner
 from crossroads.rl.logging import MetricsLogger, Progress
 from crossroads.rl.model import IDCModel
+from crossroads.rl.networks import widen_first_layer
 from crossroads.rl.sampler import PathSet, PolicyWeights, make_sampler, policy_weights
 
 RUNTIME_FIELDS = ("workers", "ray_address", "device", "torch_threads", "progress", "tensorboard")
@@ -72,7 +73,8 @@ def train(config: TrainConfig, *, resume: bool = False) -> Path:
 
     paths = PathSet.build(config.intersections, config.tasks)
     model = IDCModel(paths.tensors(device=device), xi_positions=config.xi_positions,
-                     nominal_floor=config.nominal_floor, braking_floor=config.braking_floor)
+                     nominal_floor=config.nominal_floor, braking_floor=config.braking_floor,
+                     preview=config.path_preview)
     learner = Learner(config, model, device)
     buffer = ReplayBuffer(config.buffer_size, buffer_seed)
     start = 0
@@ -191,9 +193,10 @@ class _Window:
 
 
 def warm_start(learner: Learner, source: Path) -> None:
-    """Load the networks of ``source`` (model file or checkpoint) into a fresh learner."""
+    """Load the networks of ``source`` (model file or checkpoint) into a fresh learner; networks
+    trained without the path preview start a run with it unchanged (``widen_first_layer``)."""
     networks = load_checkpoint(source)["learner"]
     for name, net in zip(("policy", "value", "adversary"), learner.nets, strict=True):
         if net is not None and networks.get(name) is not None:
-            net.load_state_dict(networks[name])
+            net.load_state_dict(widen_first_layer(networks[name], net))
 
