@@ -171,6 +171,9 @@ def widen_first_layer(state: dict[str, Tensor], net: nn.Module) -> dict[str, Ten
     (``load_state_dict`` then reports a real mismatch)."""
     own = net.state_dict().get(FIRST_LAYER_WEIGHT)
     weight = state.get(FIRST_LAYER_WEIGHT)
+    if own is not None and weight is not None and weight.shape[1] > own.shape[1]:
+        raise ValueError(f"the source networks read {weight.shape[1]} inputs (trained with the path preview) "
+                         f"and these {own.shape[1]}: set path_preview=true to start from them")
     if own is None or weight is None or weight.shape[1] >= own.shape[1] or weight.shape[0] != own.shape[0]:
         return state
     wider = torch.zeros_like(own)
