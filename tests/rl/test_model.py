@@ -167,3 +167,43 @@ def test_braking_floor_makes_a_slowing_car_ahead_bind() -> None:
     far = StateBatch(ego, others[:, 1:2].expand(1, 16, 6).clone(), batch.kappa, batch.path, batch.stop)
     assert torch.equal(IDCModel(paths, braking_floor=True).rollout(far, coast, None, 25).j_safe,
                        IDCModel(paths).rollout(far, coast, None, 25).j_safe)
+
+
+def test_stopping_tail_sees_a_standing_car_beyond_the_horizon() -> None:
+    """The ego coasting at 8.33 m/s, 40 m (centres) behind a car standing on its straight path: over
+    T = 25 steps it gets within ~19 m, no constraint binds; but from there full braking (~15 m) ends
+    inside the safety margin, so the stopping tail's J_safe > 0. A plan that brakes from the start keeps a
+    way to stop and the tail adds nothing; J_track and the overlap never change with the tail."""
+    from crossroads.idc.state import path_tensors
+    from crossroads.network import catalogue
+    from crossroads.sim.config import WorldConfig
+    from crossroads.sim.traffic import NO_TRAFFIC
+    from crossroads.sim.world import World
+    from crossroads.rl.buffer import StateBatch
+
+    with World(WorldConfig(net_file=catalogue.build("c_three_lane"), task="straight", demand=NO_TRAFFIC,
+                           warmup_s=1.0)) as world:
+        path = world.candidates[1]
+    x0, y0 = path.points[0]
+    heading = float(path.heading[0])
+    c, s = np.cos(heading), np.sin(heading)
+    ego = torch.tensor([[x0, y0, 8.33, 0.0, heading, 0.0, 0.0, 0.0]], dtype=torch.float64)
+    others = torch.zeros(1, 16, 6, dtype=torch.float64)
+    others[..., 0] = 1e4  # padding: far away
+    others[0, 0] = torch.tensor([x0 + 40.0 * c, y0 + 40.0 * s, 0.0, heading, 4.8, 1.8])
+    batch = StateBatch(ego, others, torch.zeros(1, 16, dtype=torch.float64), torch.tensor([0]), torch.tensor([False]))
+    paths = path_tensors([path], dtype=torch.float64)
+    coast = lambda s_, i: torch.zeros(1, 2, dtype=torch.float64)  # noqa: E731  (keep a = 0)
+    brake = lambda s_, i: torch.tensor([[0.0, -4.5]], dtype=torch.float64)  # noqa: E731
+    plain = IDCModel(paths).rollout(batch, coast, None, 25)
+    tailed = IDCModel(paths, stopping_tail=40).rollout(batch, coast, None, 25)
+    assert plain.j_safe.item() == 0.0
+    assert tailed.j_safe.item() > 0.5
+    assert torch.equal(tailed.j_track, plain.j_track) and torch.equal(tailed.overlap_m, plain.overlap_m)
+    assert IDCModel(paths, stopping_tail=40).rollout(batch, brake, None, 25).j_safe.item() == 0.0
+    # the tail's penalty reaches the plan's actions
+    u = torch.zeros(1, 2, dtype=torch.float64, requires_grad=True)
+    IDCModel(paths, stopping_tail=40).rollout(batch, lambda s_, i: u, None, 25).j_safe.sum().backward()
+    assert u.grad is not None and u.grad[0, 1].item() > 0.0  # more acceleration, more penalty
+    with pytest.raises(ValueError, match="stopping_tail"):
+        IDCModel(paths, stopping_tail=-1)

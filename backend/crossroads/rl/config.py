@@ -83,6 +83,13 @@ class TrainConfig:
     model's own receding-horizon optimum without it passed no more nominal left turns than the
     policy: at 8.3 m/s it braked too late for a queue whose last car was slowing from 1 m/s and hit it
     at 1.1 m/s; with the floor it braked in time. Off by default until a run has trained with it."""
+    stopping_tail: int = 0
+    """(choice) Steps [0.1 s] of full braking appended to every rollout's last state, against every
+    participant braking to a stand, whose safety penalties are added to J_safe (rl.model): a terminal
+    constraint that the plan end where the ego can still stop clear. 0 (paper): none; 40 covers full
+    braking from the pass profile's 8.33 m/s (the safety shield's horizon). Why: from 8.33 m/s full
+    braking takes ~3.3 s, longer than T = 25 steps, and every trained policy without it ran into
+    standing queues at the pass profile's speed (docs/measurements/why-the-models-crash.md §9–§16)."""
     sample_actions: bool = True
     """Training rollouts draw u ~ π_θ and ξ ~ π_φ by reparameterisation (the paper's u ~ π_θ(s));
     False uses the tanh-squashed means (deterministic rollouts)."""
@@ -252,6 +259,8 @@ class TrainConfig:
                 raise ValueError(f"{name}: must be ≥ 1, got {getattr(self, name)}")
         if self.workers < 0:
             raise ValueError(f"workers: must be ≥ 0, got {self.workers}")
+        if self.stopping_tail < 0:
+            raise ValueError(f"stopping_tail: must be ≥ 0 steps, got {self.stopping_tail}")
         if self.samples_per_iteration <= 0:
             raise ValueError("samples_per_iteration: must be > 0")
         check_xi_positions(self.xi_positions)

@@ -48,6 +48,17 @@ the safety shield's second future). f_other keeps each speed, so over 2.5 s a ca
 end of a queue is predicted to roll on: session 9's receding-horizon optimum of the model
 (benchmarks/probing.py) drove at 8.3 m/s into such a car (1 m/s and slowing, 14 m ahead) and
 braked only when its constraint bound, too late; with the floor it braked in time and passed.
+
+The stopping tail (``stopping_tail``, **(choice, not the paper's)**, ``TrainConfig.stopping_tail``,
+0 = off): after the T steps the ego's last state is rolled on for that many steps of full braking
+(Δa = −``JERK_MAX``, the wheel held: the shield's backup, ``idc.shield``) against every participant
+braking to a stand (the braking floor's future), and the safety penalty of the deepest intrusion
+over those steps (per constraint) is added to J_safe. Why: from 8.33 m/s full braking (jerk-limited to −3 m/s²) takes ~3.3 s, longer than
+the 2.5 s horizon, so a plan can be free of penalties over T steps and still end where no braking
+avoids the car standing ahead — the receding horizon is not recursively feasible, and the trained
+policies drove into standing queues at the pass profile's speed (docs/measurements/why-the-models-
+crash.md §9–§15). The tail is a terminal constraint: the plan must end where the ego can still stop
+clear. It does not depend on ξ (the others brake) and adds no utility (J_track is unchanged).
 """
 
 from __future__ import annotations
@@ -58,7 +69,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from crossroads.constants import OTHER_DECEL_MPS2
+from crossroads.constants import JERK_MAX, OTHER_DECEL_MPS2
 from crossroads.idc.constraints import SAFETY_MARGIN_M, penalty, road_constraints, safety_constraints
 from crossroads.idc.state import N_OTHERS, PathTensors, Reference, preview_torch, reference_points_torch, tracking_error
 from crossroads.idc.utility import utility
@@ -92,13 +103,16 @@ class IDCModel:
     """The model f over a fixed set of candidate paths (padded, see ``idc.state.path_tensors``)."""
 
     def __init__(self, paths: PathTensors, xi_positions: XiPositions = "offset", nominal_floor: bool = False,
-                 braking_floor: bool = False, preview: bool = False) -> None:
+                 braking_floor: bool = False, preview: bool = False, stopping_tail: int = 0) -> None:
         check_xi_positions(xi_positions)
+        if stopping_tail < 0:
+            raise ValueError(f"stopping_tail must be ≥ 0 steps, got {stopping_tail}")
         self.paths = paths
         self.preview = preview  # states carry the path preview (networks with path_preview read it)
         self.xi_positions = xi_positions
         self.nominal_floor = nominal_floor
         self.braking_floor = braking_floor
+        self.stopping_tail = stopping_tail
 
     def track(self, ego: Tensor, path: Tensor, stop: Tensor) -> tuple[Tensor, Reference]:
         """(x_track [B, 4], the reference points) of ``ego`` against its path and mode."""
@@ -148,7 +162,35 @@ class IDCModel:
             j_track = j_track + l
             j_safe = j_safe + penalty(g)
             overlap = torch.maximum(overlap, g_safe.detach().amax(dim=-1) - SAFETY_MARGIN_M)
+            if self.stopping_tail and not self.braking_floor:
+                braking = other_braking_step(braking, kappa, OTHER_DECEL_MPS2)
+        if self.stopping_tail:
+            j_safe = j_safe + self.tail_penalty(ego, braking, kappa)
         return Rollout(j_track, j_safe, s0, overlap)
+
+    def tail_penalty(self, ego: Tensor, braking: Tensor, kappa: Tensor) -> Tensor:
+        """The safety penalty of the deepest intrusion, per constraint, over ``stopping_tail`` steps of
+        the ego braking fully from ``ego`` [B, 8] while the participants ``braking`` [B, 16, 6] brake
+        to a stand (module docstring).
+
+        The deepest intrusion, not the sum over the tail's steps. Where braking no longer stops short
+        of a car (the ego's circles pass one of the car's circle centres in the prediction) neither
+        gives a useful gradient: the sum falls the faster the ego drives through (measured: coasting
+        at 8.33 m/s 30 m behind a standing car, dJ_safe/dΔa = −240), the deepest intrusion jumps
+        between time steps. Where the ego comes to rest inside the margin but short of that, the
+        deepest intrusion grows with the ego's speed (40 m behind: J_safe 3.1, dJ_safe/dΔa = +59, a
+        finite difference +62; tests/rl/test_model.py) and counts once, not once per standing step."""
+        full_braking = torch.zeros(ego.shape[0], 2, dtype=ego.dtype, device=ego.device)
+        full_braking[:, 1] = -JERK_MAX
+        no_track = torch.zeros(ego.shape[0], 4, dtype=ego.dtype, device=ego.device)  # constraints ignore it
+        deepest: Tensor | None = None
+        for _ in range(self.stopping_tail):
+            ego = ego_step(ego, full_braking)
+            braking = other_braking_step(braking, kappa, OTHER_DECEL_MPS2)
+            g = safety_constraints(assemble(ego, no_track, braking))
+            deepest = g if deepest is None else torch.maximum(deepest, g)
+        assert deepest is not None
+        return penalty(deepest)
 
 
 def _without_positions(xi: Tensor) -> Tensor:

@@ -74,7 +74,7 @@ def train(config: TrainConfig, *, resume: bool = False) -> Path:
     paths = PathSet.build(config.intersections, config.tasks)
     model = IDCModel(paths.tensors(device=device), xi_positions=config.xi_positions,
                      nominal_floor=config.nominal_floor, braking_floor=config.braking_floor,
-                     preview=config.path_preview)
+                     preview=config.path_preview, stopping_tail=config.stopping_tail)
     learner = Learner(config, model, device)
     buffer = ReplayBuffer(config.buffer_size, buffer_seed)
     start = 0
