@@ -201,9 +201,15 @@ def test_stopping_tail_sees_a_standing_car_beyond_the_horizon() -> None:
     assert tailed.j_safe.item() > 0.5
     assert torch.equal(tailed.j_track, plain.j_track) and torch.equal(tailed.overlap_m, plain.overlap_m)
     assert IDCModel(paths, stopping_tail=40).rollout(batch, brake, None, 25).j_safe.item() == 0.0
-    # the tail's penalty reaches the plan's actions
-    u = torch.zeros(1, 2, dtype=torch.float64, requires_grad=True)
-    IDCModel(paths, stopping_tail=40).rollout(batch, lambda s_, i: u, None, 25).j_safe.sum().backward()
-    assert u.grad is not None and u.grad[0, 1].item() > 0.0  # more acceleration, more penalty
+    # its gradient always asks for less acceleration, also where braking comes far too late (24 m:
+    # the ego's circles would pass through the car's, where a circle penalty rewards driving on)
+    for gap in (24.0, 30.0, 36.0, 40.0):
+        moved = others.clone()
+        moved[0, 0, :2] = torch.tensor([x0 + gap * c, y0 + gap * s])
+        ahead = StateBatch(ego, moved, batch.kappa, batch.path, batch.stop)
+        u = torch.zeros(1, 2, dtype=torch.float64, requires_grad=True)
+        j = IDCModel(paths, stopping_tail=40).rollout(ahead, lambda s_, i, u=u: u, None, 25).j_safe.sum()
+        j.backward()
+        assert j.item() > 0.0 and u.grad is not None and u.grad[0, 1].item() > 0.0, gap
     with pytest.raises(ValueError, match="stopping_tail"):
         IDCModel(paths, stopping_tail=-1)
