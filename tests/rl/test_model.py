@@ -211,5 +211,11 @@ def test_stopping_tail_sees_a_standing_car_beyond_the_horizon() -> None:
         j = IDCModel(paths, stopping_tail=40).rollout(ahead, lambda s_, i, u=u: u, None, 25).j_safe.sum()
         j.backward()
         assert j.item() > 0.0 and u.grad is not None and u.grad[0, 1].item() > 0.0, gap
+    # a car crossing the ego's way (heading 90° off) is left to the horizon's constraints: driving
+    # faster could put it behind the ego by the horizon's end, so the tail must not ask for that
+    crossing = others.clone()
+    crossing[0, 0, 3] = heading + np.pi / 2
+    across = StateBatch(ego, crossing, batch.kappa, batch.path, batch.stop)
+    assert IDCModel(paths, stopping_tail=40).rollout(across, coast, None, 25).j_safe.item() == 0.0
     with pytest.raises(ValueError, match="stopping_tail"):
         IDCModel(paths, stopping_tail=-1)

@@ -1,0 +1,96 @@
+"""What does the training model charge for driving at a standing car? The cost of three plans.
+
+    .venv/bin/python benchmarks/queue_cost.py --policy models/apg.pt [--tail 0 40]
+
+The same scene as benchmarks/queue_response.py (a car standing on c_three_lane's straight path a
+bumper gap d ahead of the ego at speed v, pass mode, every other slot padded), but instead of
+driving it in closed loop this prints what the differentiable model (rl.model, with the braking
+floor the shipped runs train with) charges over one horizon of T = 25 steps for three plans: the
+policy's mean actions, full braking (Δa = −4.5 m/s³ every step) and coasting (Δa = 0), as
+J = J_track + ρ J_safe with ρ = 15, once per ``--tail`` (the stopping tail's steps; 0 = the paper's
+model). Where braking costs less than the policy's plan the model asks the policy to brake; where
+it costs more, no amount of training on that state will teach the stop.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+
+from crossroads.constants import EGO_LENGTH_M, HORIZON_T, JERK_MAX, PENALTY_RHO  # noqa: E402
+from crossroads.idc.state import N_OTHERS, pad_participant, path_tensors  # noqa: E402
+from crossroads.network import catalogue  # noqa: E402
+from crossroads.rl.augment import CAR_LENGTH_M, CAR_WIDTH_M  # noqa: E402
+from crossroads.rl.buffer import StateBatch  # noqa: E402
+from crossroads.rl.checkpoint import load_networks  # noqa: E402
+from crossroads.rl.model import IDCModel  # noqa: E402
+from crossroads.sim.config import WorldConfig  # noqa: E402
+from crossroads.sim.traffic import NO_TRAFFIC  # noqa: E402
+from crossroads.sim.world import World  # noqa: E402
+
+START_S_M = 20.0  # [m] the ego's position along the path
+
+
+def scene(path, cells: list[tuple[float, float]]) -> StateBatch:  # type: ignore[no-untyped-def]
+    """One state per (v, d) cell: the ego at v on ``path``, a car standing d m (bumpers) ahead."""
+    egos, others = [], []
+    for v, gap in cells:
+        x, y, heading, _ = path.reference_at(START_S_M)
+        ego = np.array([x, y, v, 0.0, heading, 0.0, 0.0, 0.0])
+        block = np.tile(pad_participant(ego), (N_OTHERS, 1))
+        cx, cy, ch, _ = path.reference_at(START_S_M + gap + 0.5 * (EGO_LENGTH_M + CAR_LENGTH_M))
+        block[0] = [cx, cy, 0.0, ch, CAR_LENGTH_M, CAR_WIDTH_M]
+        egos.append(ego)
+        others.append(block)
+    n = len(cells)
+    return StateBatch(torch.tensor(np.asarray(egos), dtype=torch.float32),
+                      torch.tensor(np.asarray(others), dtype=torch.float32),
+                      torch.zeros(n, N_OTHERS), torch.zeros(n, dtype=torch.long), torch.zeros(n, dtype=torch.bool))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--policy", action="append", required=True, help="a trained model (.pt); repeatable")
+    parser.add_argument("--speeds", type=float, nargs="+", default=[2.0, 4.0, 6.0, 8.0], help="[m/s]")
+    parser.add_argument("--gaps", type=float, nargs="+", default=[6.0, 10.0, 15.0, 20.0, 30.0],
+                        help="[m] bumper to bumper")
+    parser.add_argument("--tail", type=int, nargs="+", default=[0, 40], help="stopping-tail steps to price")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    with World(WorldConfig(net_file=catalogue.build("c_three_lane"), task="straight", demand=NO_TRAFFIC,
+                           warmup_s=1.0)) as world:
+        candidates = world.candidates
+    cells = [(v, d) for v in args.speeds for d in args.gaps]
+    batch = scene(candidates[0], cells)
+    n = len(cells)
+    brake = torch.tensor([[0.0, -JERK_MAX]]).expand(n, 2)
+    coast = torch.zeros(n, 2)
+    for policy_file in args.policy:
+        networks, _ = load_networks(Path(policy_file))
+        for tail in args.tail:
+            model = IDCModel(path_tensors(candidates, dtype=torch.float32), braking_floor=True,
+                             preview=networks.policy.preview, stopping_tail=tail)
+            with torch.no_grad():
+                policy = networks.policy
+                costs = [model.rollout(batch, act, None, HORIZON_T)
+                         for act in (lambda s, i, p=policy: p.mean_action(s), lambda s, i: brake,
+                                     lambda s, i: coast)]
+            print(f"\n{policy_file}, stopping tail {tail} steps: J = J_track + {PENALTY_RHO:g} J_safe of each plan")
+            print(f"{'v [m/s]':>8}{'d [m]':>7}{'policy':>10}{'(J_safe)':>10}{'brake':>10}{'coast':>10}  cheapest")
+            asks_brake = 0
+            for k, (v, d) in enumerate(cells):
+                j = [float(c.j_track[k] + PENALTY_RHO * c.j_safe[k]) for c in costs]
+                cheapest = ("policy", "brake", "coast")[int(np.argmin(j))]
+                asks_brake += j[1] < j[0]
+                print(f"{v:>8g}{d:>7g}{j[0]:>10.1f}{float(costs[0].j_safe[k]):>10.2f}{j[1]:>10.1f}{j[2]:>10.1f}  {cheapest}")
+            print(f"braking costs less than the policy's plan in {asks_brake} of {n} cells")
+
+
+if __name__ == "__main__":
+    main()
