@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/queue_cost.py --policy models/apg.pt [--tail 0 40]
 
-The same scene as benchmarks/queue_response.py (a car standing on c_three_lane's straight path a
+The same scene as benchmarks/queue_response.py (``standing_car_scene``: a car standing on c_three_lane's straight path a
 bumper gap d ahead of the ego at speed v, pass mode, every other slot padded), but instead of
 driving it in closed loop this prints what the differentiable model (rl.model, with the braking
 floor the shipped runs train with) charges over one horizon of T = 25 steps for three plans: the
@@ -10,6 +10,11 @@ policy's mean actions, full braking (Δa = −4.5 m/s³ every step) and coasting
 J = J_track + ρ J_safe with ρ = 15, once per ``--tail`` (the stopping tail's steps; 0 = the paper's
 model). Where braking costs less than the policy's plan the model asks the policy to brake; where
 it costs more, no amount of training on that state will teach the stop.
+
+``--trace V D`` instead drives the one cell (V m/s, D m) in closed loop in the same model (as
+queue_response.py does, the policy's mean action every 0.1 s) and prints, every 0.4 s, the gap, the
+ego's speed and acceleration, the policy's Δa and what the model (with the first ``--tail``)
+predicts for the policy's plan from there: does the policy act on the danger its model sees?
 """
 
 from __future__ import annotations
@@ -23,35 +28,39 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from crossroads.constants import EGO_LENGTH_M, HORIZON_T, JERK_MAX, PENALTY_RHO  # noqa: E402
-from crossroads.idc.state import N_OTHERS, pad_participant, path_tensors  # noqa: E402
+from crossroads.constants import HORIZON_T, JERK_MAX, PENALTY_RHO  # noqa: E402
+from crossroads.constants import EGO_LENGTH_M  # noqa: E402
+from crossroads.idc.state import N_OTHERS, path_tensors  # noqa: E402
+from crossroads.rl.augment import CAR_LENGTH_M  # noqa: E402
 from crossroads.network import catalogue  # noqa: E402
-from crossroads.rl.augment import CAR_LENGTH_M, CAR_WIDTH_M  # noqa: E402
 from crossroads.rl.buffer import StateBatch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel  # noqa: E402
 from crossroads.sim.config import WorldConfig  # noqa: E402
+from crossroads.sim.ego import ego_step  # noqa: E402
 from crossroads.sim.traffic import NO_TRAFFIC  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
+from queue_response import standing_car_scene  # noqa: E402  (benchmarks/, beside this script)
 
 START_S_M = 20.0  # [m] the ego's position along the path
 
 
-def scene(path, cells: list[tuple[float, float]]) -> StateBatch:  # type: ignore[no-untyped-def]
-    """One state per (v, d) cell: the ego at v on ``path``, a car standing d m (bumpers) ahead."""
-    egos, others = [], []
-    for v, gap in cells:
-        x, y, heading, _ = path.reference_at(START_S_M)
-        ego = np.array([x, y, v, 0.0, heading, 0.0, 0.0, 0.0])
-        block = np.tile(pad_participant(ego), (N_OTHERS, 1))
-        cx, cy, ch, _ = path.reference_at(START_S_M + gap + 0.5 * (EGO_LENGTH_M + CAR_LENGTH_M))
-        block[0] = [cx, cy, 0.0, ch, CAR_LENGTH_M, CAR_WIDTH_M]
-        egos.append(ego)
-        others.append(block)
-    n = len(cells)
-    return StateBatch(torch.tensor(np.asarray(egos), dtype=torch.float32),
-                      torch.tensor(np.asarray(others), dtype=torch.float32),
-                      torch.zeros(n, N_OTHERS), torch.zeros(n, dtype=torch.long), torch.zeros(n, dtype=torch.bool))
+def trace(model: IDCModel, policy: torch.nn.Module, batch: StateBatch, steps: int, title: str) -> None:
+    """Drive the one-cell ``batch`` in closed loop; every 4 steps print the state and the plan's J_safe."""
+    leader = batch.others[:, 0, :2]
+    ego = batch.ego
+    print(f"\n{title}: closed loop, every 0.4 s")
+    print(f"{'t [s]':>6}{'gap [m]':>9}{'v [m/s]':>9}{'a [m/s2]':>10}{'Δa':>7}{'plan J_safe':>13}")
+    with torch.no_grad():
+        for k in range(steps):
+            now = StateBatch(ego, batch.others, batch.kappa, batch.path, batch.stop)
+            u = policy.mean_action(model.initial_states(now))  # type: ignore[operator]
+            if k % 4 == 0:
+                plan = model.rollout(now, lambda s, i: policy.mean_action(s), None, HORIZON_T)  # type: ignore[operator]
+                gap = float(torch.linalg.norm(ego[0, :2] - leader[0])) - 0.5 * (EGO_LENGTH_M + CAR_LENGTH_M)
+                print(f"{k / 10:>6.1f}{gap:>9.1f}{float(ego[0, 2]):>9.2f}{float(ego[0, 7]):>10.2f}"
+                      f"{float(u[0, 1]):>7.2f}{float(plan.j_safe[0]):>13.2f}")
+            ego = ego_step(ego, u)
 
 
 def main() -> None:
@@ -61,23 +70,32 @@ def main() -> None:
     parser.add_argument("--gaps", type=float, nargs="+", default=[6.0, 10.0, 15.0, 20.0, 30.0],
                         help="[m] bumper to bumper")
     parser.add_argument("--tail", type=int, nargs="+", default=[0, 40], help="stopping-tail steps to price")
+    parser.add_argument("--trace", type=float, nargs=2, metavar=("V", "D"),
+                        help="drive this one cell in closed loop instead, with the first --tail")
+    parser.add_argument("--steps", type=int, default=60, help="closed-loop steps of 0.1 s (--trace)")
     args = parser.parse_args()
     torch.set_num_threads(1)
     with World(WorldConfig(net_file=catalogue.build("c_three_lane"), task="straight", demand=NO_TRAFFIC,
                            warmup_s=1.0)) as world:
         candidates = world.candidates
-    cells = [(v, d) for v in args.speeds for d in args.gaps]
-    batch = scene(candidates[0], cells)
+    cells = [tuple(args.trace)] if args.trace else [(v, d) for v in args.speeds for d in args.gaps]
     n = len(cells)
+    ego, others = standing_car_scene(candidates[0], cells, START_S_M)
+    batch = StateBatch(ego, others, torch.zeros(n, N_OTHERS), torch.zeros(n, dtype=torch.long),
+                       torch.zeros(n, dtype=torch.bool))
+    paths = path_tensors(candidates, dtype=torch.float32)
     brake = torch.tensor([[0.0, -JERK_MAX]]).expand(n, 2)
     coast = torch.zeros(n, 2)
     for policy_file in args.policy:
         networks, _ = load_networks(Path(policy_file))
+        policy = networks.policy
+        if args.trace:
+            model = IDCModel(paths, braking_floor=True, preview=policy.preview, stopping_tail=args.tail[0])
+            trace(model, policy, batch, args.steps, f"{policy_file}, stopping tail {args.tail[0]} steps")
+            continue
         for tail in args.tail:
-            model = IDCModel(path_tensors(candidates, dtype=torch.float32), braking_floor=True,
-                             preview=networks.policy.preview, stopping_tail=tail)
+            model = IDCModel(paths, braking_floor=True, preview=policy.preview, stopping_tail=tail)
             with torch.no_grad():
-                policy = networks.policy
                 costs = [model.rollout(batch, act, None, HORIZON_T)
                          for act in (lambda s, i, p=policy: p.mean_action(s), lambda s, i: brake,
                                      lambda s, i: coast)]

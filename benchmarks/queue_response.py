@@ -32,6 +32,7 @@ import torch  # noqa: E402
 from crossroads.constants import EGO_LENGTH_M  # noqa: E402
 from crossroads.idc.state import N_OTHERS, pad_participant, path_tensors  # noqa: E402
 from crossroads.network import catalogue  # noqa: E402
+from crossroads.planning.routes import CandidatePath  # noqa: E402
 from crossroads.rl.augment import CAR_LENGTH_M, CAR_WIDTH_M  # noqa: E402  (the training copies' car)
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel, assemble  # noqa: E402
@@ -41,6 +42,25 @@ from crossroads.sim.traffic import NO_TRAFFIC  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 
 START_S_M = 5.0  # [m] the ego's start along the path
+
+
+def standing_car_scene(path: CandidatePath, cells: list[tuple[float, float]],
+                       start_s_m: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """(ego [n, 8], others [n, 16, 6]) float32, one row per (v, d) cell: the ego ``start_s_m`` along
+    ``path`` at speed v, a car standing on the path d m ahead bumper to bumper (none for d = inf),
+    every other slot padded."""
+    egos, blocks = [], []
+    for v, gap in cells:
+        x, y, heading, _ = path.reference_at(start_s_m)
+        ego = np.array([x, y, v, 0.0, heading, 0.0, 0.0, 0.0])
+        block = np.tile(pad_participant(ego), (N_OTHERS, 1))
+        if math.isfinite(gap):
+            cx, cy, ch, _ = path.reference_at(start_s_m + gap + 0.5 * (EGO_LENGTH_M + CAR_LENGTH_M))
+            block[0] = [cx, cy, 0.0, ch, CAR_LENGTH_M, CAR_WIDTH_M]
+        egos.append(ego)
+        blocks.append(block)
+    return (torch.tensor(np.asarray(egos), dtype=torch.float32),
+            torch.tensor(np.asarray(blocks), dtype=torch.float32))
 
 
 def main() -> None:
@@ -61,18 +81,7 @@ def main() -> None:
     model = IDCModel(path_tensors(candidates, dtype=torch.float32))
 
     cells = [(v, d) for v in args.speeds for d in args.gaps] + [(v, math.inf) for v in args.speeds]
-    ego0, others0 = [], []
-    for v, gap in cells:
-        x, y, heading, _ = path.reference_at(START_S_M)
-        ego = np.array([x, y, v, 0.0, heading, 0.0, 0.0, 0.0])
-        others = np.tile(pad_participant(ego), (N_OTHERS, 1))
-        if math.isfinite(gap):
-            cx, cy, ch, _ = path.reference_at(START_S_M + gap + 0.5 * (EGO_LENGTH_M + CAR_LENGTH_M))
-            others[0] = [cx, cy, 0.0, ch, CAR_LENGTH_M, CAR_WIDTH_M]
-        ego0.append(ego)
-        others0.append(others)
-    ego_t = torch.tensor(np.asarray(ego0), dtype=torch.float32)
-    others_t = torch.tensor(np.asarray(others0), dtype=torch.float32)
+    ego_t, others_t = standing_car_scene(path, cells, START_S_M)
     n = len(cells)
     path_index = torch.zeros(n, dtype=torch.int64)
     stop = torch.zeros(n, dtype=torch.bool)

@@ -2,16 +2,23 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import pytest
 import torch
 
 from crossroads.idc.constraints import SAFETY_MARGIN_M, penalty, road_constraints, safety_constraints
-from crossroads.idc.state import OTHERS, reference_point, tracking_error
+from crossroads.idc.state import OTHERS, PathTensors, path_tensors, reference_point, tracking_error
 from crossroads.idc.utility import utility
+from crossroads.network import catalogue
+from crossroads.rl.buffer import StateBatch
 from crossroads.rl.model import IDCModel
+from crossroads.sim.config import WorldConfig
 from crossroads.sim.ego import ego_step
 from crossroads.sim.other import other_step
+from crossroads.sim.traffic import NO_TRAFFIC
+from crossroads.sim.world import World
 
 from rl.rl_support import make_batch
 
@@ -135,30 +142,45 @@ def test_nominal_floor_is_never_milder_than_either_prediction(path_set) -> None:
     torch.testing.assert_close(zero.j_safe, nominal.j_safe, rtol=0, atol=1e-12)
 
 
+class _StraightScene(NamedTuple):
+    """One ego on c_three_lane's straight path (path 1) and one car ahead on it; float64."""
+
+    paths: PathTensors
+    batch: StateBatch
+    others: torch.Tensor  # (1, 16, 6): the car in slot 0, the rest far away
+    x0: float
+    y0: float
+    heading: float
+
+
+def _car_ahead_on_straight(ego_speed: float, car_ahead_m: float, car_speed: float) -> _StraightScene:
+    """The ego at the start of the straight path at ``ego_speed``, a 4.8 × 1.8 m car ``car_ahead_m``
+    (centres) ahead on the path at ``car_speed``, heading the path's way."""
+    with World(WorldConfig(net_file=catalogue.build("c_three_lane"), task="straight", demand=NO_TRAFFIC,
+                           warmup_s=1.0)) as world:
+        path = world.candidates[1]
+    x0, y0 = (float(v) for v in path.points[0])
+    heading = float(path.heading[0])
+    c, s = np.cos(heading), np.sin(heading)
+    ego = torch.tensor([[x0, y0, ego_speed, 0.0, heading, 0.0, 0.0, 0.0]], dtype=torch.float64)
+    others = torch.zeros(1, 16, 6, dtype=torch.float64)
+    others[..., 0] = 1e4  # padding: far away
+    others[0, 0] = torch.tensor([x0 + car_ahead_m * c, y0 + car_ahead_m * s, car_speed, heading, 4.8, 1.8])
+    batch = StateBatch(ego, others, torch.zeros(1, 16, dtype=torch.float64), torch.tensor([0]), torch.tensor([False]))
+    return _StraightScene(path_tensors([path], dtype=torch.float64), batch, others, x0, y0, heading)
+
+
+def _coast(s_: torch.Tensor, i: int) -> torch.Tensor:
+    """Keep a = 0."""
+    return torch.zeros(1, 2, dtype=torch.float64)
+
+
 def test_braking_floor_makes_a_slowing_car_ahead_bind() -> None:
     """The ego coasting at 8 m/s, 19 m (centres) behind a car doing 6 m/s on its straight path: kept at
     its speed the car stays ~14 m ahead over T = 25 steps, no constraint binds; braking at 4.5 m/s²
     it stops 4 m on and the ego runs into it: the braking floor's J_safe > 0. Nobody in reach: equal."""
-    from crossroads.idc.state import path_tensors
-    from crossroads.network import catalogue
-    from crossroads.sim.config import WorldConfig
-    from crossroads.sim.traffic import NO_TRAFFIC
-    from crossroads.sim.world import World
-    from crossroads.rl.buffer import StateBatch
-
-    with World(WorldConfig(net_file=catalogue.build("c_three_lane"), task="straight", demand=NO_TRAFFIC,
-                           warmup_s=1.0)) as world:
-        path = world.candidates[1]
-    x0, y0 = path.points[0]
-    heading = float(path.heading[0])
-    c, s = np.cos(heading), np.sin(heading)
-    ego = torch.tensor([[x0, y0, 8.0, 0.0, heading, 0.0, 0.0, 0.0]], dtype=torch.float64)
-    others = torch.zeros(1, 16, 6, dtype=torch.float64)
-    others[..., 0] = 1e4  # padding: far away
-    others[0, 0] = torch.tensor([x0 + 19.0 * c, y0 + 19.0 * s, 6.0, heading, 4.8, 1.8])
-    batch = StateBatch(ego, others, torch.zeros(1, 16, dtype=torch.float64), torch.tensor([0]), torch.tensor([False]))
-    paths = path_tensors([path], dtype=torch.float64)
-    coast = lambda s_, i: torch.zeros(1, 2, dtype=torch.float64)  # noqa: E731  (keep a = 0)
+    paths, batch, others, *_ = _car_ahead_on_straight(8.0, 19.0, 6.0)
+    ego, coast = batch.ego, _coast
     plain = IDCModel(paths).rollout(batch, coast, None, 25)
     floored = IDCModel(paths, braking_floor=True).rollout(batch, coast, None, 25)
     assert plain.j_safe.item() == 0.0 and plain.overlap_m.item() < -5.0
@@ -174,26 +196,9 @@ def test_stopping_tail_sees_a_standing_car_beyond_the_horizon() -> None:
     T = 25 steps it gets within ~19 m, no constraint binds; but from there full braking (~15 m) ends
     inside the safety margin, so the stopping tail's J_safe > 0. A plan that brakes from the start keeps a
     way to stop and the tail adds nothing; J_track and the overlap never change with the tail."""
-    from crossroads.idc.state import path_tensors
-    from crossroads.network import catalogue
-    from crossroads.sim.config import WorldConfig
-    from crossroads.sim.traffic import NO_TRAFFIC
-    from crossroads.sim.world import World
-    from crossroads.rl.buffer import StateBatch
-
-    with World(WorldConfig(net_file=catalogue.build("c_three_lane"), task="straight", demand=NO_TRAFFIC,
-                           warmup_s=1.0)) as world:
-        path = world.candidates[1]
-    x0, y0 = path.points[0]
-    heading = float(path.heading[0])
+    paths, batch, others, x0, y0, heading = _car_ahead_on_straight(8.33, 40.0, 0.0)
+    ego, coast = batch.ego, _coast
     c, s = np.cos(heading), np.sin(heading)
-    ego = torch.tensor([[x0, y0, 8.33, 0.0, heading, 0.0, 0.0, 0.0]], dtype=torch.float64)
-    others = torch.zeros(1, 16, 6, dtype=torch.float64)
-    others[..., 0] = 1e4  # padding: far away
-    others[0, 0] = torch.tensor([x0 + 40.0 * c, y0 + 40.0 * s, 0.0, heading, 4.8, 1.8])
-    batch = StateBatch(ego, others, torch.zeros(1, 16, dtype=torch.float64), torch.tensor([0]), torch.tensor([False]))
-    paths = path_tensors([path], dtype=torch.float64)
-    coast = lambda s_, i: torch.zeros(1, 2, dtype=torch.float64)  # noqa: E731  (keep a = 0)
     brake = lambda s_, i: torch.tensor([[0.0, -4.5]], dtype=torch.float64)  # noqa: E731
     plain = IDCModel(paths).rollout(batch, coast, None, 25)
     tailed = IDCModel(paths, stopping_tail=40).rollout(batch, coast, None, 25)

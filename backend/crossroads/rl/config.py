@@ -84,9 +84,10 @@ class TrainConfig:
     policy: at 8.3 m/s it braked too late for a queue whose last car was slowing from 1 m/s and hit it
     at 1.1 m/s; with the floor it braked in time. Off by default until a run has trained with it."""
     stopping_tail: int = 0
-    """(choice) Steps [0.1 s] of full braking appended to every rollout's last state, against every
-    participant braking to a stand, whose safety penalties are added to J_safe (rl.model): a terminal
-    constraint that the plan end where the ego can still stop clear. 0 (paper): none; 40 covers full
+    """(choice) Steps [0.1 s] of full braking appended to every rollout's last state, every
+    participant braking to a stand alongside; J_safe gets the squared reach of the ego's rest point
+    (plus the safety margin) past each participant at rest ahead in its way (rl.model,
+    ``stopping_intrusion``): a terminal constraint that the plan end where the ego can still stop clear. 0 (paper): none; 40 covers full
     braking from the pass profile's 8.33 m/s (the safety shield's horizon). Why: from 8.33 m/s full
     braking takes ~3.3 s, longer than T = 25 steps, and every trained policy without it ran into
     standing queues at the pass profile's speed (docs/measurements/why-the-models-crash.md §9–§16)."""

@@ -65,7 +65,6 @@ no utility (J_track is unchanged).
 from __future__ import annotations
 
 import math
-
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -158,15 +157,14 @@ class IDCModel:
             if floor:
                 nominal = other_step(nominal, kappa, None)
                 g_safe = torch.maximum(g_safe, safety_constraints(assemble(ego, x_track, nominal)))
-            if self.braking_floor:
+            if self.braking_floor or self.stopping_tail:  # the tail starts from this future's end
                 braking = other_braking_step(braking, kappa, OTHER_DECEL_MPS2)
+            if self.braking_floor:
                 g_safe = torch.maximum(g_safe, safety_constraints(assemble(ego, x_track, braking)))
             g = torch.cat([g_safe, road_constraints(s, ref.x, ref.y, ref.heading)], dim=-1)
             j_track = j_track + l
             j_safe = j_safe + penalty(g)
             overlap = torch.maximum(overlap, g_safe.detach().amax(dim=-1) - SAFETY_MARGIN_M)
-            if self.stopping_tail and not self.braking_floor:
-                braking = other_braking_step(braking, kappa, OTHER_DECEL_MPS2)
         if self.stopping_tail:
             j_safe = j_safe + self.tail_penalty(ego, braking, kappa)
         return Rollout(j_track, j_safe, s0, overlap)
@@ -195,8 +193,8 @@ STOPPING_HEADING_COS = math.cos(math.radians(45.0))
 """(choice) Only participants heading within ±45° of the ego's count in the stopping tail: the cars and
 cyclists it follows. A crossing participant or a pedestrian (braking to a stand in the prediction)
 could otherwise be escaped by driving faster — past it by the end of the horizon, it lies behind the
-ego and out of the corridor — and a run trained so (session 15, 500 iterations) sped up on an empty
-road from 9.2 to 10.2 m/s; the horizon's own constraints keep those."""
+ego and out of the corridor — and two runs trained so (session 15, runs 22–23, 500 iterations) sped
+up on an empty road from run 17's 8.8–9.2 to 9.6–10.4 m/s; the horizon's own constraints keep those."""
 
 
 def stopping_intrusion(ego: Tensor, rest: Tensor, others: Tensor) -> Tensor:
@@ -226,12 +224,13 @@ def stopping_intrusion(ego: Tensor, rest: Tensor, others: Tensor) -> Tensor:
     ox, oy = others[..., 0] - ex, others[..., 1] - ey
     x_o, y_o = c * ox + s * oy, c * oy - s * ox  # [B, 16]
     rel = others[..., 3] - heading[:, None]
-    cos_r, sin_r = torch.cos(rel).abs(), torch.sin(rel).abs()
+    cos_rel = torch.cos(rel)
+    cos_r, sin_r = cos_rel.abs(), torch.sin(rel).abs()
     length, width = others[..., 4], others[..., 5]
     half_along = 0.5 * (length * cos_r + width * sin_r)
     half_across = 0.5 * (length * sin_r + width * cos_r)
     with torch.no_grad():
-        in_way = ((x_o > 0.0) & (torch.cos(rel) > STOPPING_HEADING_COS)
+        in_way = ((x_o > 0.0) & (cos_rel > STOPPING_HEADING_COS)
                   & ((y_o - y_e).abs() < half_across + 0.5 * EGO_WIDTH_M + STOPPING_CORRIDOR_CLEARANCE_M))
     reach = x_e + 0.5 * EGO_LENGTH_M + SAFETY_MARGIN_M - (x_o - half_along)
     return torch.where(in_way, torch.relu(reach), torch.zeros_like(reach))
