@@ -200,9 +200,11 @@ class TorchOps:
 
     @staticmethod
     def take_along(x: Any, idx: Any, axis: int) -> Any:
+        """``idx`` must have ``x``'s shape but along ``axis`` (no broadcasting): ``torch.gather``,
+        which ONNX exports, where ``take_along_dim`` does not export."""
         import torch
 
-        return torch.take_along_dim(x, idx, dim=axis)
+        return torch.gather(x, axis, idx)
 
     @staticmethod
     def zeros_like(x: Any) -> Any:

@@ -76,6 +76,12 @@ STATE_DIM: Final = EGO_STATE_DIM + TRACK_STATE_DIM + OTHER_STATE_DIM * (
 PREVIEW_DISTANCES_M: Final = (5.0, 10.0, 15.0, 20.0)  # [m] of arc length beyond the nearest point
 PREVIEW_FEATURES: Final = 3  # per distance: lateral offset in the ego frame, relative heading, v_ref
 PREVIEW_DIM: Final = PREVIEW_FEATURES * len(PREVIEW_DISTANCES_M)  # 12
+# (choice, not the paper's) The lead summary that networks built with ``lead_input`` read after the
+# state (idc.state.lead_features): the nearest participant in a straight corridor ahead of the ego,
+# whichever of the 16 distance-sorted slots it sits in.
+LEAD_LOOKAHEAD_M: Final = 40.0  # [m] how far ahead the corridor reaches (and the gap when it is empty)
+LEAD_LATERAL_MARGIN_M: Final = 0.3  # [m] added to the two half widths: the corridor's lateral reach
+LEAD_DIM: Final = 3  # gap / lookahead, closing speed / 10 m/s, 1 when a participant is in the corridor
 STEER_RATE_MAX: Final = 0.4  # [rad/s] |Δδ|
 JERK_MAX: Final = 4.5  # [m/s³] |Δa|
 STEER_MAX: Final = 0.4  # [rad] |δ|

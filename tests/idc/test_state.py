@@ -292,3 +292,54 @@ def test_networks_with_the_preview_refuse_states_without_it() -> None:
     with pytest.raises(ValueError, match="path preview reads states of 120 values"):
         S.network_input(np.zeros((2, STATE_DIM)), preview=True)
     assert S.network_input(np.zeros((2, S.PREVIEW_STATE_DIM))).shape == (2, STATE_DIM)
+
+
+def _ego_on_x_axis(speed: float) -> np.ndarray:
+    """A state of an ego at the origin heading +x at ``speed``, every participant slot padded."""
+    ego = np.array([0.0, 0.0, speed, 0.0, 0.0, 0.0, 0.0, 0.0])
+    others = np.tile(S.pad_participant(ego), (S.N_OTHERS, 1))
+    return np.concatenate([ego, np.zeros(4), others.ravel()])
+
+
+def _put(state: np.ndarray, slot: int, row: list[float]) -> None:
+    state[12 + 6 * slot: 18 + 6 * slot] = row
+
+
+def test_lead_features_pick_the_nearest_participant_in_the_corridor_whatever_its_slot() -> None:
+    from crossroads.constants import EGO_LENGTH_M, LEAD_LOOKAHEAD_M
+
+    empty = _ego_on_x_axis(6.0)
+    np.testing.assert_allclose(S.lead_features(empty), [1.0, 0.0, 0.0])
+    state = empty.copy()
+    _put(state, 0, [8.0, 3.5, 6.0, 0.0, 4.8, 1.8])   # nearest of all, but in the next lane
+    _put(state, 1, [12.0, -9.0, 5.0, math.pi / 2, 4.8, 1.8])  # crossing, still to the right
+    _put(state, 5, [30.0, 0.4, 2.0, 0.0, 4.8, 1.8])  # the car ahead, in a late slot
+    _put(state, 12, [45.0, 0.0, 0.0, 0.0, 0.5, 0.5])  # a pedestrian in the corridor, farther
+    gap = 30.0 - 2.4 - EGO_LENGTH_M / 2
+    np.testing.assert_allclose(S.lead_features(state), [gap / LEAD_LOOKAHEAD_M, (6.0 - 2.0) / 10.0, 1.0])
+    swapped = state.copy()  # the same scene, the car ahead moved to the first slot
+    swapped[12:18], swapped[42:48] = state[42:48], state[12:18]
+    np.testing.assert_allclose(S.lead_features(swapped), S.lead_features(state))
+    _put(state, 7, [-10.0, 0.0, 8.0, 0.0, 4.8, 1.8])  # a follower does not count
+    np.testing.assert_allclose(S.lead_features(state), S.lead_features(swapped))
+    oncoming = empty.copy()
+    _put(oncoming, 3, [15.0, 0.0, 5.0, math.pi, 4.8, 1.8])  # head-on: closing at both speeds
+    assert S.lead_features(oncoming)[1] == pytest.approx((6.0 + 5.0) / 10.0)
+
+
+def test_lead_features_are_pose_invariant_backend_free_and_differentiable() -> None:
+    st = random_states(64)
+    for k in range(0, 64, 4):  # a participant just ahead of every fourth ego
+        phi = st[k, S.PHI]
+        _put(st[k], 2, [st[k, 0] + 9.0 * math.cos(phi), st[k, 1] + 9.0 * math.sin(phi), 3.0, phi, 4.5, 1.8])
+    lead = S.lead_features(st)
+    assert lead.shape == (64, 3) and lead[::4, 2].all()
+    np.testing.assert_allclose(S.lead_features(rigid(st, 1.3, -40.0, 250.0)), lead, atol=1e-9)
+    t = torch.tensor(st, requires_grad=True)
+    np.testing.assert_allclose(S.lead_features(t).detach().numpy(), lead, rtol=1e-9, atol=1e-9)
+    S.lead_features(t)[:, 0].sum().backward()
+    phi = t.detach()[::4, S.PHI]  # driving ahead, towards the lead, shrinks the gap
+    assert (t.grad[::4, S.PX] * torch.cos(phi) + t.grad[::4, S.PY] * torch.sin(phi) < 0).all()
+    x = S.network_input(st, lead=True)
+    assert x.shape == (64, STATE_DIM + 3)
+    np.testing.assert_allclose(x[:, STATE_DIM:], lead)

@@ -74,3 +74,28 @@ def test_paper_sizes() -> None:
     assert isinstance(nets.policy.net[1], torch.nn.GELU)
     assert linears[-1].out_features == 4 and nets.adversary.net[-1].out_features == 128
     assert make_networks("dpg", 5, 256).adversary is None
+
+
+def test_widening_to_the_lead_summary_keeps_the_outputs_and_refuses_a_misaligned_source() -> None:
+    import pytest
+
+    from crossroads.constants import LEAD_DIM, PREVIEW_DIM
+    from crossroads.rl.networks import network_width, widen_first_layer
+
+    assert network_width(False) == STATE_DIM and network_width(True, True) == STATE_DIM + PREVIEW_DIM + LEAD_DIM
+    rng = np.random.default_rng(4)
+    states = torch.tensor(rng.normal(0.0, 3.0, (8, STATE_DIM + PREVIEW_DIM)))
+    for source_preview in (False, True):  # any source whose inputs are a prefix widens exactly
+        torch.manual_seed(1)
+        source = make_networks("apg", 2, 32, preview=source_preview)
+        target = make_networks("apg", 2, 32, preview=True, lead=True)
+        for src, dst in zip(source, target, strict=True):
+            dst.load_state_dict(widen_first_layer(src.state_dict(), dst))
+        seen = states if source_preview else states[:, :STATE_DIM]
+        assert torch.allclose(target.policy.mean_action(states), source.policy.mean_action(seen))
+        assert torch.allclose(target.value(states), source.value(seen))
+    lead_only = make_networks("dpg", 2, 32, lead=True)
+    with pytest.raises(ValueError, match="lead summary without the path preview"):
+        widen_first_layer(lead_only.policy.state_dict(), make_networks("dpg", 2, 32, preview=True, lead=True).policy)
+    with pytest.raises(ValueError, match="set path_preview and lead_input as the source had them"):
+        widen_first_layer(target.policy.state_dict(), make_networks("dpg", 2, 32, preview=True).policy)

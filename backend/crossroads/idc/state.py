@@ -50,6 +50,8 @@ from crossroads.constants import (
     EGO_LENGTH_M,
     EGO_STATE_DIM,
     EGO_WIDTH_M,
+    LEAD_LATERAL_MARGIN_M,
+    LEAD_LOOKAHEAD_M,
     N_CYCLISTS_OBSERVED,
     N_PEDESTRIANS_OBSERVED,
     N_VEHICLES_OBSERVED,
@@ -561,11 +563,45 @@ ANGLE_SCALE = math.pi  # relative headings and Δφ [rad] per unit (wrapped angl
 PREVIEW_LATERAL_SCALE_M = 5.0  # (choice) the preview's lateral offsets [m] per unit
 
 
-def network_input(states: Any, preview: bool = False) -> Any:
+def lead_features(states: Any) -> Any:
+    """The lead summary ``[..., 3]`` of states ``[..., 108+]`` (numpy/torch; **choice, not the paper's**):
+    of the participants whose centre lies ahead of the ego and within half their width + half the
+    ego's + 0.3 m of its heading line, the nearest by bumper gap (its centre distance − half its length
+    − half the ego's, at least 0), up to 40 m; as [gap / 40 m, (v_x − its speed along the ego's
+    heading) / 10 m/s, 1]. An empty corridor reads [1, 0, 0].
+
+    Why: the 16 participant slots are sorted by distance, so the car the ego queues behind sits in
+    whichever slot its distance gives it among the oncoming cars, cyclists and pedestrians around;
+    measured (session 16, run 28 at 2 000 iterations), 2 s before 31 collisions with a vehicle ahead
+    the policy's plan met that vehicle in 3 with the other slots padded and in 17 with the scene as seen.
+    A straight corridor, not the path: it is the ego's own heading that carries it into what is ahead
+    within a few seconds. Differentiable in the positions (the gap) through the chosen participant.
+    """
+    xp = ops(states)
+    states = xp.asarray(states, like=states)
+    px, py, phi, vx = states[..., PX], states[..., PY], states[..., PHI], states[..., VX]
+    o = others_block(states)
+    c, s = xp.cos(phi)[..., None], xp.sin(phi)[..., None]
+    dx, dy = o[..., O_PX] - px[..., None], o[..., O_PY] - py[..., None]
+    ahead, lateral = c * dx + s * dy, c * dy - s * dx
+    reach = 0.5 * (o[..., O_W] + EGO_WIDTH_M) + LEAD_LATERAL_MARGIN_M
+    inside = (ahead > 0.0) & (xp.abs(lateral) < reach)
+    gap = xp.clip(ahead - 0.5 * (o[..., O_L] + EGO_LENGTH_M), 0.0, LEAD_LOOKAHEAD_M)
+    gap = xp.where(inside, gap, xp.zeros_like(gap) + LEAD_LOOKAHEAD_M)
+    nearest = xp.argmin(gap, axis=-1)[..., None]
+    lead_gap = xp.take_along(gap, nearest, axis=-1)[..., 0]
+    along = o[..., O_V] * xp.cos(o[..., O_PHI] - phi[..., None])
+    lead_v = xp.take_along(along, nearest, axis=-1)[..., 0]
+    present = xp.take_along(xp.asarray(inside, like=gap), nearest, axis=-1)[..., 0]
+    return xp.stack([lead_gap / LEAD_LOOKAHEAD_M, present * (vx - lead_v) / SPEED_SCALE_MPS, present], axis=-1)
+
+
+def network_input(states: Any, preview: bool = False, lead: bool = False) -> Any:
     """Normalised, pose-invariant network input ``[..., 108]`` from states ``[..., 108]`` (numpy/torch);
     with ``preview``, ``[..., 120]`` from preview states ``[..., 120]`` (module docstring), the preview
     as lateral offsets / 5 m, relative headings / π and v_ref / 10 m/s. Without it a preview state's
-    last 12 values are ignored.
+    last 12 values are ignored. With ``lead`` the 3 values of :func:`lead_features` follow (computed
+    from the state: nothing more is stored).
 
     **(choice)** Everything is expressed relative to the ego so one policy fits every intersection
     and approach: the ego's absolute position and heading are replaced by 0 (slots 0, 1, 4 kept
@@ -595,9 +631,12 @@ def network_input(states: Any, preview: bool = False) -> Any:
                     o[..., O_V] / SPEED_SCALE_MPS, xp.wrap(o[..., O_PHI] - phi[..., None]) / ANGLE_SCALE,
                     o[..., O_L] / SIZE_SCALE_M, o[..., O_W] / SIZE_SCALE_M], axis=-1)
     rel = rel.reshape(tuple(rel.shape[:-2]) + (N_OTHERS * OTHER_STATE_DIM,))
-    if not preview:
-        return xp.concat([ego, track, rel], axis=-1)
-    ahead = states[..., PREVIEW]
-    scale = xp.asarray([PREVIEW_LATERAL_SCALE_M] * N_PREVIEW + [ANGLE_SCALE] * N_PREVIEW
-                       + [SPEED_SCALE_MPS] * N_PREVIEW, like=ahead)
-    return xp.concat([ego, track, rel, ahead / scale], axis=-1)
+    parts = [ego, track, rel]
+    if preview:
+        ahead = states[..., PREVIEW]
+        scale = xp.asarray([PREVIEW_LATERAL_SCALE_M] * N_PREVIEW + [ANGLE_SCALE] * N_PREVIEW
+                           + [SPEED_SCALE_MPS] * N_PREVIEW, like=ahead)
+        parts.append(ahead / scale)
+    if lead:
+        parts.append(lead_features(states))
+    return xp.concat(parts, axis=-1)

@@ -69,7 +69,8 @@ def load_networks(path: Path, device: str | torch.device = "cpu") -> tuple[Netwo
     """The networks of a checkpoint (eval mode) and its config."""
     data = load_checkpoint(path, device)
     config = TrainConfig.from_json(data["config"])
-    nets = make_networks(config.algo, config.hidden_layers, config.hidden_units, device, config.path_preview)
+    nets = make_networks(config.algo, config.hidden_layers, config.hidden_units, device, config.path_preview,
+                         config.lead_input)
     learner = data["learner"]
     nets.policy.load_state_dict(learner["policy"])
     nets.value.load_state_dict(learner["value"])

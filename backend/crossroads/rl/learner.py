@@ -55,7 +55,7 @@ class Learner:
         self.model = model
         self.device = torch.device(device)
         self.nets: Networks = make_networks(config.algo, config.hidden_layers, config.hidden_units, self.device,
-                                            config.path_preview)
+                                            config.path_preview, config.lead_input)
         betas = config.adam_betas
 
         def adam(module: nn.Module, lr: tuple[float, float], maximize: bool = False) -> tuple[Any, Any]:

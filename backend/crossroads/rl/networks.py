@@ -21,6 +21,9 @@ layers (paper: 5 × 256).
   (``idc.state``, 120 values: the path 5-20 m ahead), 12 more inputs. :func:`widen_first_layer`
   loads a network trained without it into one with it, the new inputs' weights zero, so the warm
   start computes exactly what the source did until training gives them weight.
+* ``lead`` **(choice, off by default)**: the networks also read the lead summary of
+  :func:`crossroads.idc.state.lead_features` (3 inputs after the state's, computed from it: the
+  nearest participant in the corridor ahead, whichever slot holds it). Warm starts widen the same way.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor, nn
 
-from crossroads.constants import JERK_MAX, PREVIEW_DIM, STATE_DIM, STEER_RATE_MAX, XI_RANGES
+from crossroads.constants import JERK_MAX, LEAD_DIM, PREVIEW_DIM, STATE_DIM, STEER_RATE_MAX, XI_RANGES
 from crossroads.idc.state import N_OTHERS, network_input
 
 LOG_STD_MIN = -5.0  # (choice) std ≥ e⁻⁵ ≈ 0.007 in z
@@ -61,11 +64,12 @@ class SquashedGaussianPolicy(nn.Module):
     """s[..., 108] → a diagonal Gaussian in z, squashed by tanh onto [low, high] per output."""
 
     def __init__(self, low: tuple[float, ...], high: tuple[float, ...], hidden_layers: int,
-                 hidden_units: int, preview: bool = False) -> None:
+                 hidden_units: int, preview: bool = False, lead: bool = False) -> None:
         super().__init__()
         self.dim = len(low)
         self.preview = preview
-        self.net = mlp(input_width(preview), 2 * self.dim, hidden_layers, hidden_units)
+        self.lead = lead
+        self.net = mlp(network_width(preview, lead), 2 * self.dim, hidden_layers, hidden_units)
         with torch.no_grad():
             out = self.net[-1]
             assert isinstance(out, nn.Linear)
@@ -76,7 +80,7 @@ class SquashedGaussianPolicy(nn.Module):
 
     def distribution(self, states: Tensor) -> tuple[Tensor, Tensor]:
         """(mean, log_std) of z, each ``[..., dim]``."""
-        out = self.net(network_input(states, self.preview).to(self.low.dtype))
+        out = self.net(network_input(states, self.preview, self.lead).to(self.low.dtype))
         mean, log_std = out[..., : self.dim], out[..., self.dim:]
         return mean, torch.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX)
 
@@ -102,15 +106,15 @@ class SquashedGaussianPolicy(nn.Module):
 class DrivingPolicy(SquashedGaussianPolicy):
     """π_θ: u = [Δδ, Δa] within ±0.4 rad/s, ±4.5 m/s³."""
 
-    def __init__(self, hidden_layers: int, hidden_units: int, preview: bool = False) -> None:
-        super().__init__(ACTION_LOW, ACTION_HIGH, hidden_layers, hidden_units, preview)
+    def __init__(self, hidden_layers: int, hidden_units: int, preview: bool = False, lead: bool = False) -> None:
+        super().__init__(ACTION_LOW, ACTION_HIGH, hidden_layers, hidden_units, preview, lead)
 
 
 class Adversary(SquashedGaussianPolicy):
     """π_φ: ξ for each of the 16 participant slots, shape ``[..., 16, 4]`` (ξ_x, ξ_y, ξ_v, ξ_φ)."""
 
-    def __init__(self, hidden_layers: int, hidden_units: int, preview: bool = False) -> None:
-        super().__init__(XI_LOW * N_OTHERS, XI_HIGH * N_OTHERS, hidden_layers, hidden_units, preview)
+    def __init__(self, hidden_layers: int, hidden_units: int, preview: bool = False, lead: bool = False) -> None:
+        super().__init__(XI_LOW * N_OTHERS, XI_HIGH * N_OTHERS, hidden_layers, hidden_units, preview, lead)
 
     def mean_action(self, states: Tensor) -> Tensor:
         out = super().mean_action(states)
@@ -124,10 +128,11 @@ class Adversary(SquashedGaussianPolicy):
 class ValueNet(nn.Module):
     """v_w(s, τ) ≥ 0: the predicted J_track of following path τ (in x_track of s) from s."""
 
-    def __init__(self, hidden_layers: int, hidden_units: int, preview: bool = False) -> None:
+    def __init__(self, hidden_layers: int, hidden_units: int, preview: bool = False, lead: bool = False) -> None:
         super().__init__()
         self.preview = preview
-        self.net = mlp(input_width(preview), 1, hidden_layers, hidden_units)
+        self.lead = lead
+        self.net = mlp(network_width(preview, lead), 1, hidden_layers, hidden_units)
         with torch.no_grad():  # (choice) start in ReLU's active region, so no sample begins dead
             out = self.net[-1]
             assert isinstance(out, nn.Linear)
@@ -135,7 +140,7 @@ class ValueNet(nn.Module):
 
     def forward(self, states: Tensor) -> Tensor:
         param = next(self.parameters())
-        return torch.relu(self.net(network_input(states, self.preview).to(param.dtype))).squeeze(-1)
+        return torch.relu(self.net(network_input(states, self.preview, self.lead).to(param.dtype))).squeeze(-1)
 
 
 class Networks(NamedTuple):
@@ -147,18 +152,25 @@ class Networks(NamedTuple):
 
 
 def make_networks(algo: str, hidden_layers: int, hidden_units: int, device: str | torch.device = "cpu",
-                  preview: bool = False) -> Networks:
+                  preview: bool = False, lead: bool = False) -> Networks:
     """Fresh networks (parameters drawn from torch's global RNG: seed it first); ``preview``: they
-    read the path preview too (module docstring)."""
-    policy = DrivingPolicy(hidden_layers, hidden_units, preview).to(device)
-    value = ValueNet(hidden_layers, hidden_units, preview).to(device)
-    adversary = Adversary(hidden_layers, hidden_units, preview).to(device) if algo == "apg" else None
+    read the path preview too, ``lead``: the lead summary (module docstring)."""
+    policy = DrivingPolicy(hidden_layers, hidden_units, preview, lead).to(device)
+    value = ValueNet(hidden_layers, hidden_units, preview, lead).to(device)
+    adversary = Adversary(hidden_layers, hidden_units, preview, lead).to(device) if algo == "apg" else None
     return Networks(policy, value, adversary)
 
 
 def input_width(preview: bool) -> int:
-    """Inputs of a network: the 108 of SPEC §4, and the 12 of the path preview with ``preview``."""
+    """Values of the states a network takes: the 108 of SPEC §4, and the 12 of the path preview
+    with ``preview``."""
     return STATE_DIM + (PREVIEW_DIM if preview else 0)
+
+
+def network_width(preview: bool, lead: bool = False) -> int:
+    """Inputs of a network's first layer: its states' values and, with ``lead``, the lead summary
+    computed from them."""
+    return input_width(preview) + (LEAD_DIM if lead else 0)
 
 
 FIRST_LAYER_WEIGHT = "net.0.weight"
@@ -166,14 +178,22 @@ FIRST_LAYER_WEIGHT = "net.0.weight"
 
 def widen_first_layer(state: dict[str, Tensor], net: nn.Module) -> dict[str, Tensor]:
     """``state`` (a state dict) fitted to ``net``: a first layer narrower than ``net``'s (a network
-    trained without the path preview, loaded into one with it) gets zero weights for the extra
-    inputs, so the result computes exactly what ``state`` did. Anything else passes unchanged
-    (``load_state_dict`` then reports a real mismatch)."""
+    trained without the path preview or the lead summary, loaded into one with it) gets zero weights
+    for the extra inputs, so the result computes exactly what ``state`` did. Anything else passes
+    unchanged (``load_state_dict`` then reports a real mismatch). The extra inputs come last (state,
+    preview, lead), so any source widens whose inputs are a prefix of ``net``'s; one with the lead
+    summary and no preview cannot widen into one with both (its lead weights would land on the
+    preview's inputs) and is refused."""
     own = net.state_dict().get(FIRST_LAYER_WEIGHT)
     weight = state.get(FIRST_LAYER_WEIGHT)
     if own is not None and weight is not None and weight.shape[1] > own.shape[1]:
-        raise ValueError(f"the source networks read {weight.shape[1]} inputs (trained with the path preview) "
-                         f"and these {own.shape[1]}: set path_preview=true to start from them")
+        raise ValueError(f"the source networks read {weight.shape[1]} inputs and these {own.shape[1]} "
+                         f"(path_preview adds {PREVIEW_DIM}, lead_input {LEAD_DIM}): set path_preview and "
+                         f"lead_input as the source had them to start from it")
+    if (own is not None and weight is not None and weight.shape[1] == STATE_DIM + LEAD_DIM
+            and own.shape[1] > weight.shape[1]):
+        raise ValueError("the source networks read the lead summary without the path preview; "
+                         "they cannot widen to read the preview too")
     if own is None or weight is None or weight.shape[1] >= own.shape[1] or weight.shape[0] != own.shape[0]:
         return state
     wider = torch.zeros_like(own)
