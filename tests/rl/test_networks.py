@@ -76,7 +76,7 @@ def test_paper_sizes() -> None:
     assert make_networks("dpg", 5, 256).adversary is None
 
 
-def test_widening_to_the_lead_summary_keeps_the_outputs_and_refuses_a_misaligned_source() -> None:
+def test_widening_places_each_input_block_and_refuses_to_drop_one() -> None:
     import pytest
 
     from crossroads.constants import LEAD_DIM, PREVIEW_DIM
@@ -85,9 +85,11 @@ def test_widening_to_the_lead_summary_keeps_the_outputs_and_refuses_a_misaligned
     assert network_width(False) == STATE_DIM and network_width(True, True) == STATE_DIM + PREVIEW_DIM + LEAD_DIM
     rng = np.random.default_rng(4)
     states = torch.tensor(rng.normal(0.0, 3.0, (8, STATE_DIM + PREVIEW_DIM)))
-    for source_preview in (False, True):  # any source whose inputs are a prefix widens exactly
+    # every source whose blocks the target also reads widens exactly, the lead summary without the
+    # preview included (its weights move past the preview's inputs)
+    for source_preview, source_lead in ((False, False), (True, False), (False, True)):
         torch.manual_seed(1)
-        source = make_networks("apg", 2, 32, preview=source_preview)
+        source = make_networks("apg", 2, 32, preview=source_preview, lead=source_lead)
         target = make_networks("apg", 2, 32, preview=True, lead=True)
         for src, dst in zip(source, target, strict=True):
             dst.load_state_dict(widen_first_layer(src.state_dict(), dst))
@@ -95,7 +97,7 @@ def test_widening_to_the_lead_summary_keeps_the_outputs_and_refuses_a_misaligned
         assert torch.allclose(target.policy.mean_action(states), source.policy.mean_action(seen))
         assert torch.allclose(target.value(states), source.value(seen))
     lead_only = make_networks("dpg", 2, 32, lead=True)
-    with pytest.raises(ValueError, match="lead summary without the path preview"):
-        widen_first_layer(lead_only.policy.state_dict(), make_networks("dpg", 2, 32, preview=True, lead=True).policy)
+    with pytest.raises(ValueError, match=r"\(state, lead_input\) and these 120 \(state, path_preview\)"):
+        widen_first_layer(lead_only.policy.state_dict(), make_networks("dpg", 2, 32, preview=True).policy)
     with pytest.raises(ValueError, match="set path_preview and lead_input as the source had them"):
         widen_first_layer(target.policy.state_dict(), make_networks("dpg", 2, 32, preview=True).policy)

@@ -579,15 +579,26 @@ def lead_features(states: Any) -> Any:
     """
     xp = ops(states)
     states = xp.asarray(states, like=states)
-    px, py, phi, vx = states[..., PX], states[..., PY], states[..., PHI], states[..., VX]
     o = others_block(states)
+    return _lead(xp, states, o, *_ego_frame(xp, states, o))
+
+
+def _ego_frame(xp: Any, states: Any, o: Any) -> tuple[Any, Any]:
+    """(ahead, lateral) ``[..., 16]``: each participant of ``o = others_block(states)`` relative to
+    the ego, rotated into its frame (x forward, y left) [m]."""
+    phi = states[..., PHI]
     c, s = xp.cos(phi)[..., None], xp.sin(phi)[..., None]
-    dx, dy = o[..., O_PX] - px[..., None], o[..., O_PY] - py[..., None]
-    ahead, lateral = c * dx + s * dy, c * dy - s * dx
+    dx, dy = o[..., O_PX] - states[..., PX][..., None], o[..., O_PY] - states[..., PY][..., None]
+    return c * dx + s * dy, c * dy - s * dx
+
+
+def _lead(xp: Any, states: Any, o: Any, ahead: Any, lateral: Any) -> Any:
+    """:func:`lead_features` from the participants already in the ego's frame (:func:`_ego_frame`)."""
+    phi, vx = states[..., PHI], states[..., VX]
     reach = 0.5 * (o[..., O_W] + EGO_WIDTH_M) + LEAD_LATERAL_MARGIN_M
     inside = (ahead > 0.0) & (xp.abs(lateral) < reach)
     gap = xp.clip(ahead - 0.5 * (o[..., O_L] + EGO_LENGTH_M), 0.0, LEAD_LOOKAHEAD_M)
-    gap = xp.where(inside, gap, xp.zeros_like(gap) + LEAD_LOOKAHEAD_M)
+    gap = xp.where(inside, gap, LEAD_LOOKAHEAD_M)
     nearest = xp.argmin(gap, axis=-1)[..., None]
     lead_gap = xp.take_along(gap, nearest, axis=-1)[..., 0]
     along = o[..., O_V] * xp.cos(o[..., O_PHI] - phi[..., None])
@@ -617,26 +628,25 @@ def network_input(states: Any, preview: bool = False, lead: bool = False) -> Any
         raise ValueError(f"a network with the path preview reads states of {PREVIEW_STATE_DIM} values (the "
                          f"{STATE_DIM} of SPEC §4 and the preview: build_states(..., preview=True), "
                          f"IDCModel(preview=True)); got {states.shape[-1]}")
-    px, py, phi = states[..., PX], states[..., PY], states[..., PHI]
-    zero = xp.zeros_like(px)
+    phi = states[..., PHI]
+    zero = xp.zeros_like(phi)
     ego = xp.stack([zero, zero, states[..., VX] / SPEED_SCALE_MPS, states[..., VY] / SPEED_SCALE_MPS, zero,
                     states[..., OMEGA] / YAW_RATE_SCALE, states[..., DELTA] / STEER_MAX,
                     states[..., ACC] / abs(ACCEL_MIN)], axis=-1)
     track = xp.stack([states[..., DX] / TRACK_POSITION_SCALE_M, states[..., DY] / TRACK_POSITION_SCALE_M,
                       states[..., DV] / SPEED_SCALE_MPS, states[..., DPHI] / ANGLE_SCALE], axis=-1)
     o = others_block(states)
-    c, s = xp.cos(phi)[..., None], xp.sin(phi)[..., None]
-    dx, dy = o[..., O_PX] - px[..., None], o[..., O_PY] - py[..., None]
-    rel = xp.stack([(c * dx + s * dy) / POSITION_SCALE_M, (c * dy - s * dx) / POSITION_SCALE_M,
+    ahead, lateral = _ego_frame(xp, states, o)
+    rel = xp.stack([ahead / POSITION_SCALE_M, lateral / POSITION_SCALE_M,
                     o[..., O_V] / SPEED_SCALE_MPS, xp.wrap(o[..., O_PHI] - phi[..., None]) / ANGLE_SCALE,
                     o[..., O_L] / SIZE_SCALE_M, o[..., O_W] / SIZE_SCALE_M], axis=-1)
     rel = rel.reshape(tuple(rel.shape[:-2]) + (N_OTHERS * OTHER_STATE_DIM,))
     parts = [ego, track, rel]
     if preview:
-        ahead = states[..., PREVIEW]
+        path_ahead = states[..., PREVIEW]
         scale = xp.asarray([PREVIEW_LATERAL_SCALE_M] * N_PREVIEW + [ANGLE_SCALE] * N_PREVIEW
-                           + [SPEED_SCALE_MPS] * N_PREVIEW, like=ahead)
-        parts.append(ahead / scale)
+                           + [SPEED_SCALE_MPS] * N_PREVIEW, like=path_ahead)
+        parts.append(path_ahead / scale)
     if lead:
-        parts.append(lead_features(states))
+        parts.append(_lead(xp, states, o, ahead, lateral))
     return xp.concat(parts, axis=-1)

@@ -28,6 +28,7 @@ layers (paper: 5 × 256).
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import NamedTuple
 
@@ -176,28 +177,37 @@ def network_width(preview: bool, lead: bool = False) -> int:
 FIRST_LAYER_WEIGHT = "net.0.weight"
 
 
+def _input_blocks(width: int) -> dict[str, slice] | None:
+    """Where each block of a first layer ``width`` inputs wide sits (state, then the path preview,
+    then the lead summary: :func:`network_width`); None for a width no layout gives."""
+    for preview, lead in itertools.product((False, True), repeat=2):
+        if network_width(preview, lead) == width:
+            sizes = {"state": STATE_DIM, "path_preview": PREVIEW_DIM * preview, "lead_input": LEAD_DIM * lead}
+            ends = dict(zip(sizes, itertools.accumulate(sizes.values()), strict=True))
+            return {name: slice(ends[name] - size, ends[name]) for name, size in sizes.items() if size}
+    return None
+
+
 def widen_first_layer(state: dict[str, Tensor], net: nn.Module) -> dict[str, Tensor]:
-    """``state`` (a state dict) fitted to ``net``: a first layer narrower than ``net``'s (a network
-    trained without the path preview or the lead summary, loaded into one with it) gets zero weights
-    for the extra inputs, so the result computes exactly what ``state`` did. Anything else passes
-    unchanged (``load_state_dict`` then reports a real mismatch). The extra inputs come last (state,
-    preview, lead), so any source widens whose inputs are a prefix of ``net``'s; one with the lead
-    summary and no preview cannot widen into one with both (its lead weights would land on the
-    preview's inputs) and is refused."""
+    """``state`` (a state dict) fitted to ``net``: where ``net`` reads input blocks the source did not
+    (the path preview, the lead summary: a warm start that adds them), the source's weights go to the
+    blocks both read and the new blocks' weights are zero, so the result computes exactly what
+    ``state`` did. A source reading a block ``net`` does not is refused (its inputs would be dropped
+    unnoticed). Anything else passes unchanged (``load_state_dict`` then reports a real mismatch)."""
     own = net.state_dict().get(FIRST_LAYER_WEIGHT)
     weight = state.get(FIRST_LAYER_WEIGHT)
-    if own is not None and weight is not None and weight.shape[1] > own.shape[1]:
-        raise ValueError(f"the source networks read {weight.shape[1]} inputs and these {own.shape[1]} "
-                         f"(path_preview adds {PREVIEW_DIM}, lead_input {LEAD_DIM}): set path_preview and "
-                         f"lead_input as the source had them to start from it")
-    if (own is not None and weight is not None and weight.shape[1] == STATE_DIM + LEAD_DIM
-            and own.shape[1] > weight.shape[1]):
-        raise ValueError("the source networks read the lead summary without the path preview; "
-                         "they cannot widen to read the preview too")
-    if own is None or weight is None or weight.shape[1] >= own.shape[1] or weight.shape[0] != own.shape[0]:
+    if own is None or weight is None or weight.shape == own.shape or weight.shape[0] != own.shape[0]:
         return state
+    source, target = _input_blocks(weight.shape[1]), _input_blocks(own.shape[1])
+    if source is None or target is None:
+        return state
+    if not source.keys() <= target.keys():
+        raise ValueError(f"the source networks read {weight.shape[1]} inputs ({', '.join(source)}) and these "
+                         f"{own.shape[1]} ({', '.join(target)}): set path_preview and lead_input as the "
+                         f"source had them to start from it")
     wider = torch.zeros_like(own)
-    wider[:, : weight.shape[1]] = weight
+    for name, columns in source.items():
+        wider[:, target[name]] = weight[:, columns]
     return {**state, FIRST_LAYER_WEIGHT: wider}
 
 
