@@ -30,7 +30,7 @@ is the suspect; when the optimum is safe and much cheaper than the plan, the pol
 from __future__ import annotations
 
 import os
-from collections import Counter, deque
+from collections import Counter
 from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -46,10 +46,9 @@ from crossroads.idc.state import KIND_ROWS, pad_participant, path_tensors  # noq
 from crossroads.rl.buffer import Samples, StateBatch, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel, Rollout  # noqa: E402
-from crossroads.rl.sampler import observation_sample  # noqa: E402
 from crossroads.rl.networks import Adversary  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
-from probing import HORIZON, ego_frame, model_parser, open_loop_optimum  # noqa: E402
+from probing import HORIZON, ego_frame, episode_endings, model_parser, open_loop_optimum  # noqa: E402
 
 STANDING_MPS = 0.5
 SIDE_BAND_M = 2.0  # |longitudinal offset| below this: the other is beside the ego
@@ -135,28 +134,17 @@ def main() -> None:
     looked_back: list[Samples] = []  # the state at the look-back of every collision
     with World(to_world_config(spec, args.scenario.parent)) as world:
         model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), preview=controller.preview)
-        for seed in run_seeds(spec, args.runs):
-            obs = world.reset(seed)
-            controller.reset(world.candidates)
-            # per step: the state, the speed mode, how long the vehicle ahead had stood [s]
-            recent: deque[tuple[Samples, str, float]] = deque(maxlen=look_back_steps + 1)
-            outcome = None
-            while outcome is None:
-                decision = controller.decide(obs)
-                recent.append((observation_sample(obs, int(decision.path_index), decision.speed_mode == "stop"),
-                               decision.speed_mode, obs.front_vehicle_stopped_s))
-                obs, outcome = world.step(decision.action)
-            outcomes[outcome.kind] += 1
-            if outcome.kind != "collision":
+        for end in episode_endings(world, controller, run_seeds(spec, args.runs), args.look_back):
+            outcomes[end.outcome.kind] += 1
+            if end.outcome.kind != "collision":
                 continue
-            snap = obs.participants
-            row = list(snap.ids).index(outcome.detail.split()[-1])
+            snap = end.final.participants
+            row = list(snap.ids).index(end.outcome.detail.split()[-1])
             standing = "standing" if snap.speed[row] < STANDING_MPS else "moving"
-            kinds[f"{where(obs.ego, snap.x[row], snap.y[row])}, {standing} {snap.kind[row]}"] += 1
-            impact_speeds.append(float(obs.ego[2]))
-            before, mode, stood = recent[0]
-            modes.append((mode, stood))
-            looked_back.append(before)
+            kinds[f"{where(end.final.ego, snap.x[row], snap.y[row])}, {standing} {snap.kind[row]}"] += 1
+            impact_speeds.append(float(end.final.ego[2]))
+            modes.append((end.mode, end.stood_s))
+            looked_back.append(end.before)
 
     print(f"policy {args.policy} on {args.scenario} ({args.runs} seeded runs)")
     print("outcomes: " + ", ".join(f"{k} {v}" for k, v in outcomes.most_common()))

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections import deque
 from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -22,8 +24,10 @@ from crossroads.idc.decision import IdcController
 from crossroads.idc.observed import observed_others
 from crossroads.idc.state import build_states, path_tensors
 from crossroads.planning import CandidatePath
+from crossroads.rl.buffer import Samples
 from crossroads.rl.model import IDCModel, Rollout, StateBatch
-from crossroads.sim.world import Observation, World
+from crossroads.rl.sampler import observation_sample
+from crossroads.sim.world import Observation, Outcome, World
 
 HORIZON = 25  # the paper's T, the training model's rollout length
 ACTION_SCALE = torch.tensor([STEER_RATE_MAX, JERK_MAX])  # tanh(raw plan) × this = u = [Δδ, Δa]
@@ -58,6 +62,42 @@ def probed_states(world: World, controller: IdcController, seeds: Sequence[int],
                 yield obs, decision
             obs, outcome = world.step(decision.action)
             step += 1
+
+
+@dataclass(frozen=True)
+class Ending:
+    """How a seeded episode ended, and the state a look-back before its end."""
+
+    outcome: Outcome
+    final: Observation  # the observation the world returned with the outcome
+    before: Samples  # the state (one row) on the chosen path, ``look_back_s`` before the end
+    mode: str  # the speed mode then
+    stood_s: float  # how long the vehicle ahead had stood then [s]
+
+
+def episode_endings(world: World, controller: IdcController, seeds: Sequence[int],
+                    look_back_s: float) -> Iterator[Ending]:
+    """Drive each seeded episode to its end with ``controller``; yield how each ended (at most 5 s
+    of look-back: 50 steps)."""
+    steps = max(1, min(50, round(look_back_s / 0.1)))
+    for seed in seeds:
+        obs = world.reset(seed)
+        controller.reset(world.candidates)
+        recent: deque[tuple[Samples, str, float]] = deque(maxlen=steps + 1)
+        outcome = None
+        while outcome is None:
+            decision = controller.decide(obs)
+            recent.append((observation_sample(obs, int(decision.path_index), decision.speed_mode == "stop"),
+                           decision.speed_mode, obs.front_vehicle_stopped_s))
+            obs, outcome = world.step(decision.action)
+        before, mode, stood = recent[0]
+        yield Ending(outcome, obs, before, mode, stood)
+
+
+def collision_lookbacks(world: World, controller: IdcController, seeds: Sequence[int],
+                        look_back_s: float) -> Iterator[Ending]:
+    """The endings of the seeded episodes that end in a collision."""
+    return (e for e in episode_endings(world, controller, seeds, look_back_s) if e.outcome.kind == "collision")
 
 
 def optimise_plans(model: IDCModel, batch: StateBatch, raw: torch.Tensor, steps: int, lr: float = 0.05

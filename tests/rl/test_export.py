@@ -90,13 +90,15 @@ def test_warm_start_from_an_exported_model(tmp_path: Path, path_set, model) -> N
                                 "changed_from_defaults": {}, "missing": True}]
 
 
-@pytest.mark.parametrize(("preview", "lead"), [(False, False), (True, False), (True, True)],
-                         ids=["paper-state", "path-preview", "preview-and-lead"])
-def test_onnx_export_equals_torch(tmp_path: Path, path_set, preview: bool, lead: bool) -> None:
+@pytest.mark.parametrize(("preview", "lead", "encoder"), [(False, False, 0), (True, False, 0), (True, True, 0),
+                                                     (True, True, 8)],
+                         ids=["paper-state", "path-preview", "preview-and-lead", "pooled-participants"])
+def test_onnx_export_equals_torch(tmp_path: Path, path_set, preview: bool, lead: bool, encoder: int) -> None:
     from crossroads.rl.model import IDCModel
     from crossroads.rl.onnx_export import check_onnx, export_onnx
 
-    run = train(tiny(tmp_path, iterations=3, run_name="onnx", path_preview=preview, lead_input=lead))
+    run = train(tiny(tmp_path, iterations=3, run_name="onnx", path_preview=preview, lead_input=lead,
+                     participant_encoder=encoder))
     policy_path, value_path = export_onnx(run, tmp_path / "onnx")
     model = IDCModel(path_set.tensors(), preview=preview)
     states = model.initial_states(make_batch(path_set, 64, seed=3)).numpy()

@@ -101,3 +101,41 @@ def test_widening_places_each_input_block_and_refuses_to_drop_one() -> None:
         widen_first_layer(lead_only.policy.state_dict(), make_networks("dpg", 2, 32, preview=True).policy)
     with pytest.raises(ValueError, match="set path_preview and lead_input as the source had them"):
         widen_first_layer(target.policy.state_dict(), make_networks("dpg", 2, 32, preview=True).policy)
+
+
+def test_participant_pooling_reads_every_slot_of_a_kind_alike() -> None:
+    """Pooled networks: the same outputs whichever slots of their kind the participants take, a
+    different output when one participant moves, and the MLP as wide as trunk_width says."""
+    import pytest
+
+    from crossroads.constants import PREVIEW_DIM
+    from crossroads.rl.networks import trunk_width, widen_first_layer
+
+    torch.manual_seed(2)
+    nets = make_networks("apg", 2, 32, preview=True, lead=True, encoder=16)
+    assert nets.policy.net[0].in_features == trunk_width(True, True, 16) == 12 + PREVIEW_DIM + 3 + 16
+    assert nets.adversary is not None and nets.adversary.encoder is None  # its ξ are per slot
+    rng = np.random.default_rng(5)
+    s = torch.tensor(rng.normal(0.0, 10.0, (6, STATE_DIM + PREVIEW_DIM)), dtype=torch.float32)
+    others = s[:, 12:STATE_DIM].reshape(6, 16, 6)
+    shuffled = others.clone()
+    shuffled[:, :8] = others[:, torch.tensor([5, 2, 7, 0, 1, 3, 6, 4])]  # the vehicles
+    shuffled[:, 12:] = others[:, torch.tensor([15, 14, 12, 13])]  # the pedestrians
+    t = s.clone()
+    t[:, 12:STATE_DIM] = shuffled.reshape(6, 96)
+    assert torch.allclose(nets.policy.mean_action(t), nets.policy.mean_action(s), atol=1e-6)
+    assert torch.allclose(nets.value(t), nets.value(s), atol=1e-5)
+    moved = s.clone()
+    moved[:, 12] += 5.0  # the first vehicle 5 m further
+    assert not torch.allclose(nets.policy.mean_action(moved), nets.policy.mean_action(s))
+    # a cyclist is not a vehicle: swapping a vehicle slot with a cyclist slot changes the input
+    swapped = others.clone()
+    swapped[:, [0, 8]] = others[:, [8, 0]]
+    u = s.clone()
+    u[:, 12:STATE_DIM] = swapped.reshape(6, 96)
+    assert not torch.allclose(nets.policy.mean_action(u), nets.policy.mean_action(s))
+    flat = make_networks("apg", 2, 32, preview=True, lead=True)
+    with pytest.raises(ValueError, match="distill"):
+        widen_first_layer(flat.policy.state_dict(), nets.policy)
+    with pytest.raises(ValueError, match="must be ≥ 0 units"):
+        make_networks("dpg", 2, 32, encoder=-1)

@@ -20,7 +20,7 @@ import numpy as np
 import torch
 
 from crossroads.rl.config import TrainConfig
-from crossroads.rl.networks import Networks, make_networks
+from crossroads.rl.networks import Networks, networks_for
 
 FORMAT = 1
 LAST = "last.pt"
@@ -69,8 +69,7 @@ def load_networks(path: Path, device: str | torch.device = "cpu") -> tuple[Netwo
     """The networks of a checkpoint (eval mode) and its config."""
     data = load_checkpoint(path, device)
     config = TrainConfig.from_json(data["config"])
-    nets = make_networks(config.algo, config.hidden_layers, config.hidden_units, device, config.path_preview,
-                         config.lead_input)
+    nets = networks_for(config, device)
     learner = data["learner"]
     nets.policy.load_state_dict(learner["policy"])
     nets.value.load_state_dict(learner["value"])

@@ -4,6 +4,7 @@
                      [--seed S] [--resume] [--set KEY=VALUE ...]
     crossroads train plot RUN_DIR [RUN_DIR ...] -o OUT.png
     crossroads train options          # every TrainConfig field with its meaning
+    crossroads train distill MODEL.pt -o OUT.pt --set participant_encoder=64   # a new network layout
 
 ``--set`` reaches any :class:`~crossroads.rl.config.TrainConfig` field (``--set batch_size=8
 --set tasks=left,straight``). Imports of torch happen only when a command runs.
@@ -140,6 +141,26 @@ def export_command(
     except (FileNotFoundError, ValueError) as exc:
         raise fail(str(exc)) from None
     typer.echo(f"model: {model} ({model.stat().st_size / 1e6:.1f} MB)\ncard: {card}")
+
+
+@app.command("distill")
+def distill_command(
+    model: Annotated[Path, typer.Argument(metavar="MODEL.pt", help="the source: a model file or checkpoint")],
+    out: Annotated[Path, typer.Option("-o", "--out", metavar="OUT.pt", help="the distilled model file")],
+    set_: Annotated[list[str], typer.Option("--set", help="KEY=VALUE: the new layout (e.g. participant_encoder=64)")],
+    episodes: Annotated[int, typer.Option(help="seeded sampling episodes the states come from (a tenth held out)")] = 200,
+    steps: Annotated[int, typer.Option(help="Adam steps of the fit")] = 4000,
+    seed: Annotated[int, typer.Option(help="seed of the episodes, the new networks and the batches")] = 0,
+) -> None:
+    """Refit a model's driving policy and value network in another layout (then --set init_from=OUT.pt)."""
+    from crossroads.rl.config import parse_overrides
+    from crossroads.rl.distill import distill
+
+    try:
+        report = distill(model, out, parse_overrides(set_), episodes=episodes, steps=steps, seed=seed)
+    except (FileNotFoundError, ValueError) as exc:
+        raise fail(str(exc)) from None
+    typer.echo("\n".join([f"model: {out}", *report.lines()]))
 
 
 @app.command("onnx")

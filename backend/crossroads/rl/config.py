@@ -138,6 +138,14 @@ class TrainConfig:
     traffic; measured (session 16), 2 s before a collision with a vehicle ahead run 28's plan met it in
     3 of 31 states with the other slots padded and in 17 of 31 as seen. A warm start keeps the
     source's outputs (the new inputs' weights start at zero). False (paper): nothing added."""
+    participant_encoder: int = 0
+    """(choice) > 0: the driving policy and the value network read the 16 participants through one
+    small network shared by every slot (this many units, 2 GELU layers), max-pooled over the slots
+    (``rl.networks.ParticipantPooling``), instead of 96 slot-specific inputs; the adversary keeps them
+    flat (its ξ are per slot). Measured (session 17, ``benchmarks/clutter_probe.py``): 2 s before a
+    collision with a vehicle ahead, run 17's plan kept clear of that vehicle alone in the first slot in
+    29 of 32 states and alone in the slot it had as seen in 4. Flat networks start such a run only
+    through ``crossroads train distill``. 0 (paper): the flat 108 inputs."""
     hidden_layers: int = HIDDEN_LAYERS
     """Hidden layers of every MLP (paper: 5)."""
     hidden_units: int = HIDDEN_UNITS
@@ -279,6 +287,8 @@ class TrainConfig:
             raise ValueError(f"danger_threshold: must be ≥ 0, got {self.danger_threshold}")
         if not 0.0 <= self.standing_car_share <= 1.0:
             raise ValueError(f"standing_car_share: must lie in [0, 1], got {self.standing_car_share}")
+        if self.participant_encoder < 0:
+            raise ValueError(f"participant_encoder: must be ≥ 0 units, got {self.participant_encoder}")
         if not 0 <= self.standing_car_neighbours < 8:  # the 8 vehicle slots hold them and the car ahead
             raise ValueError(f"standing_car_neighbours: must lie in 0..7, got {self.standing_car_neighbours}")
         low, high = self.standing_car_gap_m

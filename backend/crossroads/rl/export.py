@@ -105,20 +105,19 @@ def model_card(run_dir: Path, checkpoint: dict[str, Any], source: Path,
         "wall_time_s": round(wall_s, 1),
         "wall_time_total_s": round(wall_s + sum(float(h.get("wall_time_s") or 0.0) for h in history), 1),
         "lineage": history,
-        "hardware": {
-            "machine": platform.machine(),
-            "cpu": _cpu(),
-            "cpus": os.cpu_count(),
-            "python": platform.python_version(),
-            "torch": torch.__version__,
-            "device": config.get("device", "cpu"),
-        },
+        "hardware": hardware(config.get("device", "cpu")),
         "final": {key: float(value) for key, value in last.items()
                   if value not in ("", None) and key != "iteration"},
         "log_rows": len(rows),
         "source_checkpoint": str(source),
         "config": config,
     }
+
+
+def hardware(device: str) -> dict[str, Any]:
+    """What a model card says of the machine that made it."""
+    return {"machine": platform.machine(), "cpu": _cpu(), "cpus": os.cpu_count(),
+            "python": platform.python_version(), "torch": torch.__version__, "device": device}
 
 
 def describe_cpu(cpuinfo: str) -> str:

@@ -28,7 +28,7 @@ from torch import Tensor, nn
 from crossroads.rl.buffer import StateBatch
 from crossroads.rl.config import TrainConfig
 from crossroads.rl.model import IDCModel, Rollout, policy_fns
-from crossroads.rl.networks import Networks, make_networks
+from crossroads.rl.networks import Networks, networks_for
 
 
 @dataclass
@@ -54,8 +54,7 @@ class Learner:
         self.config = config
         self.model = model
         self.device = torch.device(device)
-        self.nets: Networks = make_networks(config.algo, config.hidden_layers, config.hidden_units, self.device,
-                                            config.path_preview, config.lead_input)
+        self.nets: Networks = networks_for(config, self.device)
         betas = config.adam_betas
 
         def adam(module: nn.Module, lr: tuple[float, float], maximize: bool = False) -> tuple[Any, Any]:

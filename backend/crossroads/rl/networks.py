@@ -24,6 +24,12 @@ layers (paper: 5 × 256).
 * ``lead`` **(choice, off by default)**: the networks also read the lead summary of
   :func:`crossroads.idc.state.lead_features` (3 inputs after the state's, computed from it: the
   nearest participant in the corridor ahead, whichever slot holds it). Warm starts widen the same way.
+* ``encoder`` **(choice, 0 = off by default)**: the driving policy and the value network read the 16
+  participants through :class:`ParticipantPooling` (one small network shared by every slot, its
+  outputs max-pooled over the slots) instead of 96 slot-specific inputs, so a participant means the
+  same to them whichever slot holds it and however many others are around. The adversary keeps the
+  flat input: its 64 outputs are per slot. Such networks cannot be widened from flat ones; they start
+  from them by distillation (:mod:`crossroads.rl.distill`).
 """
 
 from __future__ import annotations
@@ -32,11 +38,14 @@ import itertools
 import math
 from typing import NamedTuple
 
+from typing import TYPE_CHECKING
+
 import torch
 from torch import Tensor, nn
 
 from crossroads.constants import JERK_MAX, LEAD_DIM, PREVIEW_DIM, STATE_DIM, STEER_RATE_MAX, XI_RANGES
-from crossroads.idc.state import N_OTHERS, network_input
+from crossroads.constants import EGO_STATE_DIM, OTHER_STATE_DIM, TRACK_STATE_DIM
+from crossroads.idc.state import KIND_OF_SLOT, KINDS, N_OTHERS, network_input
 
 LOG_STD_MIN = -5.0  # (choice) std ≥ e⁻⁵ ≈ 0.007 in z
 LOG_STD_MAX = 1.0  # (choice) std ≤ e ≈ 2.7 in z (tanh saturates beyond)
@@ -61,16 +70,69 @@ def mlp(in_dim: int, out_dim: int, hidden_layers: int, hidden_units: int) -> nn.
     return nn.Sequential(*layers)
 
 
+HEAD_DIM = EGO_STATE_DIM + TRACK_STATE_DIM  # the ego's and x_track's inputs, before the participants'
+OTHERS_DIM = N_OTHERS * OTHER_STATE_DIM  # 96
+EGO_SPEED_INPUT = 2  # network_input's v_x / 10 m/s (idc.state)
+PARTICIPANT_FEATURES = OTHER_STATE_DIM + len(KINDS) + 1  # its 6 inputs, its kind one-hot, the ego's speed
+
+
+class ParticipantPooling(nn.Module):
+    """``network_input`` [..., W] → [..., W − 96 + units]: the ego's and x_track's inputs, the
+    inputs after the participants' (path preview, lead summary), then the participants pooled.
+
+    Each slot's 6 ego-frame inputs, its kind as a one-hot and the ego's speed go through one shared
+    2-layer GELU network of ``units``; the elementwise max over the 16 slots is the pooled vector.
+    Why (docs/measurements/why-the-models-crash.md §18): the flat 5 × 256 networks read each slot
+    with its own weights, and run 17's policy, 2 s before a collision with a vehicle ahead, planned
+    to keep clear of that vehicle alone in the first slot in 29 of 32 states but only in 4 of 32
+    alone in the slot it had as seen. The max over a shared encoding cannot depend on the slot, and
+    one participant's encoding not on the others. The ego's speed is in every slot's input so that
+    how soon a participant is reached is encoded with it. Pads take part like any participant: they
+    all encode alike (100 m behind, standing), so they add one fixed vector to the max."""
+
+    def __init__(self, units: int) -> None:
+        super().__init__()
+        self.units = units
+        self.encode = nn.Sequential(nn.Linear(PARTICIPANT_FEATURES, units), nn.GELU(),
+                                    nn.Linear(units, units), nn.GELU())
+        kinds = torch.zeros(N_OTHERS, len(KINDS))
+        for slot, kind in enumerate(KIND_OF_SLOT):
+            kinds[slot, KINDS.index(kind)] = 1.0
+        self.register_buffer("kinds", kinds)
+
+    def forward(self, x: Tensor) -> Tensor:
+        lead = x.shape[:-1]
+        others = x[..., HEAD_DIM:HEAD_DIM + OTHERS_DIM].reshape(lead + (N_OTHERS, OTHER_STATE_DIM))
+        speed = x[..., EGO_SPEED_INPUT, None, None].expand(lead + (N_OTHERS, 1))
+        features = torch.cat([others, self.kinds.to(x.dtype).expand(lead + self.kinds.shape), speed], dim=-1)
+        pooled = self.encode(features).amax(dim=-2)
+        return torch.cat([x[..., :HEAD_DIM], x[..., HEAD_DIM + OTHERS_DIM:], pooled], dim=-1)
+
+
+def trunk_width(preview: bool, lead: bool, encoder: int) -> int:
+    """Inputs of the MLP: :func:`network_width`, or with a participant encoder of ``encoder`` units
+    the 96 participant inputs replaced by the pooled ``encoder`` values."""
+    width = network_width(preview, lead)
+    return width if encoder == 0 else width - OTHERS_DIM + encoder
+
+
+def participant_pooling(encoder: int) -> ParticipantPooling | None:
+    if encoder < 0:
+        raise ValueError(f"participant_encoder: must be ≥ 0 units, got {encoder}")
+    return ParticipantPooling(encoder) if encoder else None
+
+
 class SquashedGaussianPolicy(nn.Module):
     """s[..., 108] → a diagonal Gaussian in z, squashed by tanh onto [low, high] per output."""
 
     def __init__(self, low: tuple[float, ...], high: tuple[float, ...], hidden_layers: int,
-                 hidden_units: int, preview: bool = False, lead: bool = False) -> None:
+                 hidden_units: int, preview: bool = False, lead: bool = False, encoder: int = 0) -> None:
         super().__init__()
         self.dim = len(low)
         self.preview = preview
         self.lead = lead
-        self.net = mlp(network_width(preview, lead), 2 * self.dim, hidden_layers, hidden_units)
+        self.encoder = participant_pooling(encoder)
+        self.net = mlp(trunk_width(preview, lead, encoder), 2 * self.dim, hidden_layers, hidden_units)
         with torch.no_grad():
             out = self.net[-1]
             assert isinstance(out, nn.Linear)
@@ -81,7 +143,8 @@ class SquashedGaussianPolicy(nn.Module):
 
     def distribution(self, states: Tensor) -> tuple[Tensor, Tensor]:
         """(mean, log_std) of z, each ``[..., dim]``."""
-        out = self.net(network_input(states, self.preview, self.lead).to(self.low.dtype))
+        x = network_input(states, self.preview, self.lead).to(self.low.dtype)
+        out = self.net(x if self.encoder is None else self.encoder(x))
         mean, log_std = out[..., : self.dim], out[..., self.dim:]
         return mean, torch.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX)
 
@@ -107,8 +170,9 @@ class SquashedGaussianPolicy(nn.Module):
 class DrivingPolicy(SquashedGaussianPolicy):
     """π_θ: u = [Δδ, Δa] within ±0.4 rad/s, ±4.5 m/s³."""
 
-    def __init__(self, hidden_layers: int, hidden_units: int, preview: bool = False, lead: bool = False) -> None:
-        super().__init__(ACTION_LOW, ACTION_HIGH, hidden_layers, hidden_units, preview, lead)
+    def __init__(self, hidden_layers: int, hidden_units: int, preview: bool = False, lead: bool = False,
+                 encoder: int = 0) -> None:
+        super().__init__(ACTION_LOW, ACTION_HIGH, hidden_layers, hidden_units, preview, lead, encoder)
 
 
 class Adversary(SquashedGaussianPolicy):
@@ -129,11 +193,13 @@ class Adversary(SquashedGaussianPolicy):
 class ValueNet(nn.Module):
     """v_w(s, τ) ≥ 0: the predicted J_track of following path τ (in x_track of s) from s."""
 
-    def __init__(self, hidden_layers: int, hidden_units: int, preview: bool = False, lead: bool = False) -> None:
+    def __init__(self, hidden_layers: int, hidden_units: int, preview: bool = False, lead: bool = False,
+                 encoder: int = 0) -> None:
         super().__init__()
         self.preview = preview
         self.lead = lead
-        self.net = mlp(network_width(preview, lead), 1, hidden_layers, hidden_units)
+        self.encoder = participant_pooling(encoder)
+        self.net = mlp(trunk_width(preview, lead, encoder), 1, hidden_layers, hidden_units)
         with torch.no_grad():  # (choice) start in ReLU's active region, so no sample begins dead
             out = self.net[-1]
             assert isinstance(out, nn.Linear)
@@ -141,7 +207,8 @@ class ValueNet(nn.Module):
 
     def forward(self, states: Tensor) -> Tensor:
         param = next(self.parameters())
-        return torch.relu(self.net(network_input(states, self.preview, self.lead).to(param.dtype))).squeeze(-1)
+        x = network_input(states, self.preview, self.lead).to(param.dtype)
+        return torch.relu(self.net(x if self.encoder is None else self.encoder(x))).squeeze(-1)
 
 
 class Networks(NamedTuple):
@@ -153,13 +220,20 @@ class Networks(NamedTuple):
 
 
 def make_networks(algo: str, hidden_layers: int, hidden_units: int, device: str | torch.device = "cpu",
-                  preview: bool = False, lead: bool = False) -> Networks:
+                  preview: bool = False, lead: bool = False, encoder: int = 0) -> Networks:
     """Fresh networks (parameters drawn from torch's global RNG: seed it first); ``preview``: they
-    read the path preview too, ``lead``: the lead summary (module docstring)."""
-    policy = DrivingPolicy(hidden_layers, hidden_units, preview, lead).to(device)
-    value = ValueNet(hidden_layers, hidden_units, preview, lead).to(device)
+    read the path preview too, ``lead``: the lead summary, ``encoder`` > 0: the policy and the value
+    network pool the participants (module docstring)."""
+    policy = DrivingPolicy(hidden_layers, hidden_units, preview, lead, encoder).to(device)
+    value = ValueNet(hidden_layers, hidden_units, preview, lead, encoder).to(device)
     adversary = Adversary(hidden_layers, hidden_units, preview, lead).to(device) if algo == "apg" else None
     return Networks(policy, value, adversary)
+
+
+def networks_for(config: TrainConfig, device: str | torch.device = "cpu") -> Networks:
+    """Fresh networks of the layout ``config`` names (:func:`make_networks`)."""
+    return make_networks(config.algo, config.hidden_layers, config.hidden_units, device, config.path_preview,
+                         config.lead_input, config.participant_encoder)
 
 
 def input_width(preview: bool) -> int:
@@ -196,8 +270,18 @@ def widen_first_layer(state: dict[str, Tensor], net: nn.Module) -> dict[str, Ten
     unnoticed). Anything else passes unchanged (``load_state_dict`` then reports a real mismatch)."""
     own = net.state_dict().get(FIRST_LAYER_WEIGHT)
     weight = state.get(FIRST_LAYER_WEIGHT)
+    pooled_here = any(key.startswith("encoder.") for key in net.state_dict())
+    pooled_there = any(key.startswith("encoder.") for key in state)
+    if pooled_here != pooled_there:
+        raise ValueError("the source networks read the participants " + ("flat" if pooled_here else "pooled")
+                         + " and these " + ("pooled" if pooled_here else "flat") + " (participant_encoder): "
+                         "distill the source into the new layout first (crossroads train distill)")
     if own is None or weight is None or weight.shape == own.shape or weight.shape[0] != own.shape[0]:
         return state
+    if pooled_here:
+        raise ValueError(f"networks with a participant encoder read {own.shape[1]} inputs and the source "
+                         f"{weight.shape[1]}: set path_preview, lead_input and participant_encoder as the source "
+                         f"had them (widening pooled networks is not supported)")
     source, target = _input_blocks(weight.shape[1]), _input_blocks(own.shape[1])
     if source is None or target is None:
         return state
@@ -214,5 +298,8 @@ def widen_first_layer(state: dict[str, Tensor], net: nn.Module) -> dict[str, Ten
 def parameter_count(module: nn.Module) -> int:
     return sum(p.numel() for p in module.parameters())
 
+
+if TYPE_CHECKING:
+    from crossroads.rl.config import TrainConfig
 
 assert math.isclose(XI_LOW[2], -0.075) and math.isclose(XI_HIGH[2], 0.225)

@@ -164,7 +164,8 @@ class EpisodeSampler:
         self._nets: dict[str, str] = {}
         with torch.random.fork_rng(devices=[]):  # leave the learner's global torch RNG untouched
             self.policy = DrivingPolicy(self.config.hidden_layers, self.config.hidden_units,
-                                        self.config.path_preview, self.config.lead_input)
+                                        self.config.path_preview, self.config.lead_input,
+                                        self.config.participant_encoder)
         self.policy.eval()
         self._torch = torch
 
