@@ -14,8 +14,9 @@ training model (T = 25, ξ ≡ 0):
   the vehicle alone in the first slot, and with the vehicle alone in the slot it had as seen (the
   slots are sorted by distance, so among traffic the car ahead is rarely in the first one)?
 * where the plan meets it as seen but not alone: which single participant, padded, makes the plan
-  keep clear of it (leave one out), and which, alone beside it, makes the plan meet it (add one);
-  each such participant by kind, place and motion in the ego's frame.
+  keep clear of it (leave one out), and which, alone beside it (the two in the slots the state
+  builder would give them), makes the plan meet it (add one); each such participant by kind, place
+  and motion in the ego's frame.
 
 A slot effect (alone in its own slot the plan meets it, alone in the first it does not) says the
 networks did not learn to read every slot alike; a culprit participant says which other traffic the
@@ -57,6 +58,7 @@ class Probe:
     meets_alone_first: bool  # the vehicle alone, in slot 0
     meets_alone_own: bool  # the vehicle alone, in its own slot
     meets_moved_first: bool  # as seen, but the vehicle moved to slot 0 (the vehicles before it one slot on)
+    others: int  # participants besides the vehicle (in the states the tests below ran on, else 0)
     leave_one_out: tuple[int, ...]  # slots whose padding alone clears the plan of the vehicle
     add_one: tuple[int, ...]  # slots that, alone beside the vehicle, make the plan meet it
 
@@ -104,17 +106,15 @@ class PlanProbe:
         return (out.overlap_m > 0).numpy()
 
 
-def only_slot(sample: Samples, slot: np.ndarray, keep_slot: bool, also: np.ndarray | None = None) -> Samples:
-    """``sample`` with every slot padded but ``slot[b]`` (and ``also[b]`` where ≥ 0); the kept
-    participant stays in its slot (``keep_slot``) or moves to slot 0."""
+def only_slot(sample: Samples, slot: np.ndarray, keep_slot: bool) -> Samples:
+    """``sample`` with every slot padded but ``slot[b]``; the kept participant stays in its slot
+    (``keep_slot``) or moves to slot 0."""
     others = np.empty_like(sample.others)
     kappa = np.zeros_like(sample.kappa)
     for b, ego in enumerate(sample.ego.astype(np.float64)):
         others[b] = pad_participant(ego)
         to = slot[b] if keep_slot else 0
         others[b, to], kappa[b, to] = sample.others[b, slot[b]], sample.kappa[b, slot[b]]
-        if also is not None and also[b] >= 0:
-            others[b, also[b]], kappa[b, also[b]] = sample.others[b, also[b]], sample.kappa[b, also[b]]
     return Samples(sample.ego, others, kappa, sample.path, sample.stop)
 
 
@@ -125,6 +125,25 @@ def moved_first(sample: Samples, slot: np.ndarray) -> Samples:
         order = [k] + [i for i in range(k + 1) if i != k]
         others[b, : k + 1], kappa[b, : k + 1] = sample.others[b, order], sample.kappa[b, order]
     return Samples(sample.ego, others, kappa, sample.path, sample.stop)
+
+
+def pair_as_built(sample: Samples, row: int, car: int, other: int) -> tuple[Samples, np.ndarray]:
+    """Row ``row`` of ``sample`` (one row) with only the vehicle in slot ``car`` and the participant in
+    slot ``other`` left, in the slots the state builder would give the two (each kind from the first
+    slot of its block, the vehicles by distance); and the vehicle's new slot (shape (1,))."""
+    ego = sample.ego[row].astype(np.float64)
+    others = np.tile(pad_participant(ego), (len(KIND_OF_SLOT), 1)).astype(sample.others.dtype)
+    kappa = np.zeros_like(sample.kappa[row:row + 1])
+    first = {kind: KIND_OF_SLOT.index(kind) for kind in set(KIND_OF_SLOT)}
+    if KIND_OF_SLOT[other] == "vehicle":
+        distance = lambda k: float(np.hypot(*(sample.others[row, k, :2] - ego[:2])))  # noqa: E731
+        placed = dict(zip(sorted((car, other), key=distance), (0, 1), strict=True))
+    else:
+        placed = {car: 0, other: first[KIND_OF_SLOT[other]]}
+    for source, to in placed.items():
+        others[to], kappa[0, to] = sample.others[row, source], sample.kappa[row, source]
+    pair = Samples(sample.ego[row:row + 1], others[None], kappa, sample.path[row:row + 1], sample.stop[row:row + 1])
+    return pair, np.array([placed[car]])
 
 
 def with_slot_padded(sample: Samples, row: int, slot: int) -> Samples:
@@ -170,17 +189,17 @@ def probe_states(probe: PlanProbe, seen: Samples) -> tuple[list[Probe], Counter[
         ego = sub.ego[b].astype(np.float64)
         out: tuple[int, ...] = ()
         add: tuple[int, ...] = ()
+        rest: list[int] = []
         if meets_seen[b] and not meets_first[b]:
             rest = [j for j in real_slots(ego, sub.others[b]) if j != slot[b]]
             one = Samples(sub.ego[b:b + 1], sub.others[b:b + 1], sub.kappa[b:b + 1], sub.path[b:b + 1],
                           sub.stop[b:b + 1])
             out = tuple(j for j in rest if not probe.meets(with_slot_padded(one, 0, j), np.array([slot[b]]))[0])
-            add = tuple(j for j in rest if probe.meets(only_slot(one, np.array([slot[b]]), True, np.array([j])),
-                                                       np.array([slot[b]]))[0])
+            add = tuple(j for j in rest if probe.meets(*pair_as_built(one, 0, int(slot[b]), j))[0])
             dropped.update(describe(ego, sub.others[b, j], KIND_OF_SLOT[j]) for j in out)
             added.update(describe(ego, sub.others[b, j], KIND_OF_SLOT[j]) for j in add)
         probes.append(Probe(int(slot[b]), bool(meets_seen[b]), bool(meets_first[b]), bool(meets_own[b]),
-                            bool(meets_moved[b]), out, add))
+                            bool(meets_moved[b]), len(rest), out, add))
     return probes, dropped, added
 
 
@@ -212,10 +231,11 @@ def main() -> None:
     gap = [p for p in probes if p.meets_seen and not p.meets_alone_first]
     print(f"{len(gap)} states meet it as seen but not alone in the first slot; of those:")
     print(f"  alone in its own slot it meets it in {sum(p.meets_alone_own for p in gap)}")
+    others = sum(p.others for p in gap)
     print(f"  padding one participant clears the plan in {sum(bool(p.leave_one_out) for p in gap)} "
-          f"({sum(len(p.leave_one_out) for p in gap)} participants)")
+          f"({sum(len(p.leave_one_out) for p in gap)} of the {others} participants around)")
     print(f"  one participant beside it makes the plan meet it in {sum(bool(p.add_one) for p in gap)} "
-          f"({sum(len(p.add_one) for p in gap)} participants)")
+          f"({sum(len(p.add_one) for p in gap)} of the {others} participants around, each alone with it)")
     for title, counts in (("padded, clears the plan", dropped), ("alone beside it, makes the plan meet it", added)):
         if counts:
             print(f"participants that, {title}:")

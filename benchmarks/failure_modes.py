@@ -38,7 +38,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from crossroads.constants import CONGESTION_STOP_S, JERK_MAX, PENALTY_RHO  # noqa: E402
+from crossroads.constants import CONGESTION_STOP_S, EGO_LENGTH_M, JERK_MAX, PENALTY_RHO  # noqa: E402
 from crossroads.evaluation.policies import split_shield  # noqa: E402
 from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.decision import IdcController  # noqa: E402
@@ -116,6 +116,25 @@ def closest_vehicle_ahead_only(sample: Samples) -> tuple[Samples, np.ndarray]:
     return Samples(sample.ego, others, np.zeros_like(sample.kappa), sample.path, sample.stop), found
 
 
+def ahead_summary(sample: Samples) -> str:
+    """The vehicle ahead (closest within ``CORRIDOR_HALF_WIDTH_M`` of the ego's axis) in each state
+    of ``sample``: how many stood, their bumper gaps and the ego's speeds (medians)."""
+    gaps, speeds, standing = [], [], 0
+    for ego, others in zip(sample.ego.astype(np.float64), sample.others.astype(np.float64), strict=True):
+        vehicles = others[KIND_ROWS["vehicle"]]
+        along, across = ego_frame(ego, vehicles[:, 0], vehicles[:, 1])
+        ahead = np.flatnonzero((along > 0.0) & (np.abs(across) < CORRIDOR_HALF_WIDTH_M))
+        if len(ahead):
+            k = ahead[np.argmin(along[ahead])]
+            gaps.append(float(along[k]) - 0.5 * (float(vehicles[k, 4]) + EGO_LENGTH_M))
+            speeds.append(float(ego[2]))
+            standing += int(vehicles[k, 2] < STANDING_MPS)
+    if not gaps:
+        return "no vehicle ahead in any of them"
+    return (f"a vehicle ahead in {len(gaps)} of {len(sample.ego)}, standing in {standing}; bumper gap median "
+            f"{np.median(gaps):.1f} m, the ego's speed median {np.median(speeds):.1f} m/s")
+
+
 def main() -> None:
     parser = model_parser(__doc__.splitlines()[0], runs=50)
     parser.add_argument("--look-back", type=float, default=1.0, help="[s] before impact (≤ 5)")
@@ -162,6 +181,7 @@ def main() -> None:
           f"in the pass mode behind a vehicle standing for at most the {CONGESTION_STOP_S:g} s before the "
           f"light logic stops: {fresh}")
     seen = Samples.concat(looked_back)
+    print(f"{look_back_steps / 10:g} s before impact: " + ahead_summary(seen))
     plan, brake, adversarial = plans(model, controller, to_batch(seen), networks.adversary)
     plan_a, brake_a = plan.j_safe.numpy(), brake.j_safe.numpy()
     print(f"{look_back_steps / 10:g} s before impact, the model's J_safe over {HORIZON} steps: policy's plan median "
