@@ -17,7 +17,7 @@ from crossroads.rl.networks import make_networks
 from crossroads.rl.sampler import PathSet
 
 sys.path.insert(0, str(REPO_ROOT / "benchmarks"))
-from clutter_probe import PlanProbe, moved_first, only_slot, real_slots, vehicle_ahead  # noqa: E402
+from clutter_probe import PlanProbe, moved_first, only_slot, pair_as_built, real_slots, vehicle_ahead  # noqa: E402
 
 PATHS = PathSet.build(("a_single_lane",), ("straight",))
 
@@ -46,8 +46,10 @@ def test_the_vehicle_ahead_and_the_slot_rearrangements() -> None:
     assert np.array_equal(moved.others[0, 4:], s.others[0, 4:])
     alone = only_slot(s, np.array([3]), keep_slot=False)
     assert np.array_equal(alone.others[0, 0], s.others[0, 3]) and real_slots(ego, alone.others[0]) == [0]
-    kept = only_slot(s, np.array([3]), keep_slot=True, also=np.array([5]))
-    assert real_slots(ego, kept.others[0]) == [3, 5]
+    kept = only_slot(s, np.array([3]), keep_slot=True)
+    assert real_slots(ego, kept.others[0]) == [3]
+    pair, car = pair_as_built(s, 0, 0, 3)  # the car 40 m ahead and the one 12 m ahead, sorted by distance
+    assert car[0] == 1 and np.array_equal(pair.others[0, 0], s.others[0, 3]) and real_slots(ego, pair.others[0]) == [0, 1]
     assert vehicle_ahead(ego, scene((), ()).others[0].astype(np.float64)) is None
 
 
