@@ -43,10 +43,16 @@ from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
-from probing import HORIZON, collision_lookbacks, ego_frame, model_parser  # noqa: E402
+from probing import (  # noqa: E402
+    CORRIDOR_HALF_WIDTH_M,
+    HORIZON,
+    STANDING_MPS,
+    collision_lookbacks,
+    ego_frame,
+    model_parser,
+    vehicle_ahead,
+)
 
-CORRIDOR_HALF_WIDTH_M = 2.5  # [m] |across| of a vehicle "ahead", as failure_modes.py
-STANDING_MPS = 0.5
 
 
 @dataclass(frozen=True)
@@ -61,14 +67,6 @@ class Probe:
     others: int  # participants besides the vehicle (in the states the tests below ran on, else 0)
     leave_one_out: tuple[int, ...]  # slots whose padding alone clears the plan of the vehicle
     add_one: tuple[int, ...]  # slots that, alone beside the vehicle, make the plan meet it
-
-
-def vehicle_ahead(ego: np.ndarray, others: np.ndarray) -> int | None:
-    """The slot of the closest vehicle ahead within the corridor, or None."""
-    vehicles = [i for i, k in enumerate(KIND_OF_SLOT) if k == "vehicle"]
-    along, across = ego_frame(ego, others[vehicles, O_PX], others[vehicles, O_PY])
-    ahead = [(a, i) for a, c, i in zip(along, across, vehicles) if a > 0.0 and abs(c) < CORRIDOR_HALF_WIDTH_M]
-    return min(ahead)[1] if ahead else None
 
 
 def real_slots(ego: np.ndarray, others: np.ndarray) -> list[int]:
@@ -142,15 +140,16 @@ def pair_as_built(sample: Samples, row: int, car: int, other: int) -> tuple[Samp
         placed = {car: 0, other: first[KIND_OF_SLOT[other]]}
     for source, to in placed.items():
         others[to], kappa[0, to] = sample.others[row, source], sample.kappa[row, source]
-    pair = Samples(sample.ego[row:row + 1], others[None], kappa, sample.path[row:row + 1], sample.stop[row:row + 1])
-    return pair, np.array([placed[car]])
+    one = sample.take(slice(row, row + 1))
+    return Samples(one.ego, others[None], kappa, one.path, one.stop), np.array([placed[car]])
 
 
 def with_slot_padded(sample: Samples, row: int, slot: int) -> Samples:
     """Row ``row`` of ``sample`` (one row) with ``slot`` padded."""
-    others, kappa = sample.others[row:row + 1].copy(), sample.kappa[row:row + 1].copy()
+    one = sample.take(slice(row, row + 1))
+    others, kappa = one.others.copy(), one.kappa.copy()
     others[0, slot], kappa[0, slot] = pad_participant(sample.ego[row].astype(np.float64)), 0.0
-    return Samples(sample.ego[row:row + 1], others, kappa, sample.path[row:row + 1], sample.stop[row:row + 1])
+    return Samples(one.ego, others, kappa, one.path, one.stop)
 
 
 def describe(ego: np.ndarray, other: np.ndarray, kind: str) -> str:
@@ -175,7 +174,7 @@ def probe_states(probe: PlanProbe, seen: Samples) -> tuple[list[Probe], Counter[
     if not rows:
         return [], Counter(), Counter()
     index = np.array([b for b, _ in rows])
-    sub = Samples(seen.ego[index], seen.others[index], seen.kappa[index], seen.path[index], seen.stop[index])
+    sub = seen.take(index)
     slot = np.array([k for _, k in rows])
     first = np.zeros_like(slot)
     meets_seen = probe.meets(sub, slot)
@@ -192,8 +191,7 @@ def probe_states(probe: PlanProbe, seen: Samples) -> tuple[list[Probe], Counter[
         rest: list[int] = []
         if meets_seen[b] and not meets_first[b]:
             rest = [j for j in real_slots(ego, sub.others[b]) if j != slot[b]]
-            one = Samples(sub.ego[b:b + 1], sub.others[b:b + 1], sub.kappa[b:b + 1], sub.path[b:b + 1],
-                          sub.stop[b:b + 1])
+            one = sub.take(slice(b, b + 1))
             out = tuple(j for j in rest if not probe.meets(with_slot_padded(one, 0, j), np.array([slot[b]]))[0])
             add = tuple(j for j in rest if probe.meets(*pair_as_built(one, 0, int(slot[b]), j))[0])
             dropped.update(describe(ego, sub.others[b, j], KIND_OF_SLOT[j]) for j in out)

@@ -42,17 +42,24 @@ from crossroads.constants import CONGESTION_STOP_S, EGO_LENGTH_M, JERK_MAX, PENA
 from crossroads.evaluation.policies import split_shield  # noqa: E402
 from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.decision import IdcController  # noqa: E402
-from crossroads.idc.state import KIND_ROWS, pad_participant, path_tensors  # noqa: E402
+from crossroads.idc.state import pad_participant, path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, StateBatch, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel, Rollout  # noqa: E402
 from crossroads.rl.networks import Adversary  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
-from probing import HORIZON, ego_frame, episode_endings, model_parser, open_loop_optimum  # noqa: E402
+from probing import (  # noqa: E402
+    CORRIDOR_HALF_WIDTH_M,
+    HORIZON,
+    STANDING_MPS,
+    ego_frame,
+    episode_endings,
+    model_parser,
+    open_loop_optimum,
+    vehicle_ahead,
+)
 
-STANDING_MPS = 0.5
 SIDE_BAND_M = 2.0  # |longitudinal offset| below this: the other is beside the ego
-CORRIDOR_HALF_WIDTH_M = 2.5  # [m] |lateral offset| of a vehicle "ahead" in the clutter test
 
 
 def where(ego: np.ndarray, x: float, y: float) -> str:
@@ -107,11 +114,9 @@ def closest_vehicle_ahead_only(sample: Samples) -> tuple[Samples, np.ndarray]:
     found = np.zeros(len(sample.ego), dtype=bool)
     for b, ego in enumerate(sample.ego.astype(np.float64)):
         others[b] = pad_participant(ego)
-        vehicles = sample.others[b, KIND_ROWS["vehicle"]].astype(np.float64)
-        along, across = ego_frame(ego, vehicles[:, 0], vehicles[:, 1])
-        ahead = np.flatnonzero((along > 0.0) & (np.abs(across) < CORRIDOR_HALF_WIDTH_M))
-        if len(ahead):
-            others[b, 0] = vehicles[ahead[np.argmin(along[ahead])]]
+        k = vehicle_ahead(ego, sample.others[b].astype(np.float64))
+        if k is not None:
+            others[b, 0] = sample.others[b, k]
             found[b] = True
     return Samples(sample.ego, others, np.zeros_like(sample.kappa), sample.path, sample.stop), found
 
@@ -121,14 +126,12 @@ def ahead_summary(sample: Samples) -> str:
     of ``sample``: how many stood, their bumper gaps and the ego's speeds (medians)."""
     gaps, speeds, standing = [], [], 0
     for ego, others in zip(sample.ego.astype(np.float64), sample.others.astype(np.float64), strict=True):
-        vehicles = others[KIND_ROWS["vehicle"]]
-        along, across = ego_frame(ego, vehicles[:, 0], vehicles[:, 1])
-        ahead = np.flatnonzero((along > 0.0) & (np.abs(across) < CORRIDOR_HALF_WIDTH_M))
-        if len(ahead):
-            k = ahead[np.argmin(along[ahead])]
-            gaps.append(float(along[k]) - 0.5 * (float(vehicles[k, 4]) + EGO_LENGTH_M))
+        k = vehicle_ahead(ego, others)
+        if k is not None:
+            along, _ = ego_frame(ego, others[k, 0], others[k, 1])
+            gaps.append(float(along) - 0.5 * (float(others[k, 4]) + EGO_LENGTH_M))
             speeds.append(float(ego[2]))
-            standing += int(vehicles[k, 2] < STANDING_MPS)
+            standing += int(others[k, 2] < STANDING_MPS)
     if not gaps:
         return "no vehicle ahead in any of them"
     return (f"a vehicle ahead in {len(gaps)} of {len(sample.ego)}, standing in {standing}; bumper gap median "

@@ -22,7 +22,7 @@ from crossroads.constants import JERK_MAX, PENALTY_RHO, STEER_RATE_MAX
 from crossroads.idc.controller import Decision
 from crossroads.idc.decision import IdcController
 from crossroads.idc.observed import observed_others
-from crossroads.idc.state import build_states, path_tensors
+from crossroads.idc.state import KIND_ROWS, N_OTHERS, build_states, path_tensors
 from crossroads.planning import CandidatePath
 from crossroads.rl.buffer import Samples
 from crossroads.rl.model import IDCModel, Rollout, StateBatch
@@ -30,6 +30,8 @@ from crossroads.rl.sampler import observation_sample
 from crossroads.sim.world import Observation, Outcome, World
 
 HORIZON = 25  # the paper's T, the training model's rollout length
+STANDING_MPS = 0.5  # a participant slower than this stands
+CORRIDOR_HALF_WIDTH_M = 2.5  # [m] |across| of a vehicle "ahead" of the ego
 ACTION_SCALE = torch.tensor([STEER_RATE_MAX, JERK_MAX])  # tanh(raw plan) × this = u = [Δδ, Δa]
 
 
@@ -38,6 +40,15 @@ def ego_frame(ego: np.ndarray, x: Any, y: Any) -> tuple[Any, Any]:
     c, s = math.cos(float(ego[4])), math.sin(float(ego[4]))
     dx, dy = x - ego[0], y - ego[1]
     return c * dx + s * dy, -s * dx + c * dy
+
+
+def vehicle_ahead(ego: np.ndarray, others: np.ndarray) -> int | None:
+    """The slot of ``others`` (16, 6) holding the closest vehicle ahead of ``ego`` within
+    ``CORRIDOR_HALF_WIDTH_M`` of its axis, or None."""
+    vehicles = np.arange(N_OTHERS)[KIND_ROWS["vehicle"]]
+    along, across = ego_frame(ego, others[vehicles, 0], others[vehicles, 1])
+    ahead = np.flatnonzero((along > 0.0) & (np.abs(across) < CORRIDOR_HALF_WIDTH_M))
+    return int(vehicles[ahead[np.argmin(along[ahead])]]) if len(ahead) else None
 
 
 def model_parser(description: str, runs: int) -> argparse.ArgumentParser:

@@ -17,7 +17,8 @@ from crossroads.rl.networks import make_networks
 from crossroads.rl.sampler import PathSet
 
 sys.path.insert(0, str(REPO_ROOT / "benchmarks"))
-from clutter_probe import PlanProbe, moved_first, only_slot, pair_as_built, real_slots, vehicle_ahead  # noqa: E402
+from clutter_probe import PlanProbe, moved_first, only_slot, pair_as_built, real_slots  # noqa: E402
+from probing import vehicle_ahead  # noqa: E402
 
 PATHS = PathSet.build(("a_single_lane",), ("straight",))
 

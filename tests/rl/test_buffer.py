@@ -74,3 +74,12 @@ def test_checkpoints_from_before_the_scores_load_with_zero_danger() -> None:
 def test_config_rejects_bad_danger_settings(field: str, value: float) -> None:
     with pytest.raises(ValueError, match=field):
         TrainConfig(**{field: value})
+
+
+def test_take_selects_the_same_rows_of_every_field() -> None:
+    s = samples(6)
+    part = s.take(np.array([4, 1]))
+    assert len(part) == 2 and part.path.tolist() == [s.path[4], s.path[1]]
+    for field in Samples._fields:
+        assert np.array_equal(getattr(part, field), getattr(s, field)[[4, 1]])
+    assert np.array_equal(s.take(slice(2, 4)).ego, s.ego[2:4])

@@ -63,6 +63,10 @@ class Samples(NamedTuple):
     def __len__(self) -> int:  # type: ignore[override]
         return len(self.path)
 
+    def take(self, rows: np.ndarray | slice) -> Samples:
+        """The rows ``rows`` (an index array or a slice) of every field."""
+        return Samples(*(getattr(self, f)[rows] for f in Samples._fields))
+
 
 def to_batch(samples: Samples, dtype: torch.dtype = torch.float32, device: str | torch.device = "cpu"
              ) -> StateBatch:

@@ -22,13 +22,11 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 from torch import Tensor
 
@@ -68,11 +66,10 @@ class DistillReport:
                 f"of the mean value"]
 
 
-def collect_episodes(config: TrainConfig, source: Networks, episodes: int) -> list[Samples]:
+def collect_episodes(config: TrainConfig, paths: PathSet, source: Networks, episodes: int) -> list[Samples]:
     """``episodes`` sampling episodes (rounds 0, 1, … of worker 0 under ``config.seed``) driven as in
     training, the source's policy driving where the rule controller does not."""
-    keys = PathSet.build(config.intersections, config.tasks).keys
-    sampler = EpisodeSampler(WorkerSpec(dataclasses.replace(config, rule_rounds=0), keys), worker_id=0)
+    sampler = EpisodeSampler(WorkerSpec(dataclasses.replace(config, rule_rounds=0), paths.keys), worker_id=0)
     weights = policy_weights(source.policy)
     return [sampler.round(r, weights) for r in range(episodes)]
 
@@ -82,9 +79,7 @@ def rollout_states(model: IDCModel, source: Networks, samples: Samples, horizon:
     ``horizon`` steps (ξ ≡ 0)."""
     out: list[Tensor] = []
     for start in range(0, len(samples.ego), chunk):
-        rows = np.arange(start, min(start + chunk, len(samples.ego)))
-        part = Samples(samples.ego[rows], samples.others[rows], samples.kappa[rows], samples.path[rows],
-                       samples.stop[rows])
+        part = samples.take(slice(start, start + chunk))
 
         def act(s: Tensor, i: int) -> Tensor:
             if i % ROLLOUT_STRIDE == 0:
@@ -153,10 +148,10 @@ def distill(source_path: Path, out: Path, overrides: dict[str, Any], episodes: i
     if source.adversary is not None and student.adversary is not None:
         student.adversary.load_state_dict(widen_first_layer(source.adversary.state_dict(), student.adversary))
 
-    recorded = collect_episodes(dataclasses.replace(source_config, seed=seed), source, episodes)
+    paths = PathSet.build(config.intersections, config.tasks)
+    recorded = collect_episodes(dataclasses.replace(source_config, seed=seed), paths, source, episodes)
     held = max(1, round(HELD_OUT_SHARE * episodes))
-    model = IDCModel(PathSet.build(config.intersections, config.tasks).tensors(dtype=torch.float32),
-                     preview=source_config.path_preview)
+    model = IDCModel(paths.tensors(dtype=torch.float32), preview=source_config.path_preview)
     train_states = rollout_states(model, source, Samples.concat(recorded[held:]), source_config.horizon)
     test_states = model.initial_states(to_batch(Samples.concat(recorded[:held])))
     generator = torch.Generator().manual_seed(seed)
@@ -204,10 +199,4 @@ def write_model(out: Path, config: TrainConfig, nets: Networks, source: Path, re
         "distillation": dataclasses.asdict(report),
         "config": config.to_json(),
     }
-    out.with_suffix(".card.json").write_text(json.dumps(card, indent=2, default=_finite) + "\n")
-
-
-def _finite(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    raise TypeError(f"not JSON serialisable: {value!r}")
+    out.with_suffix(".card.json").write_text(json.dumps(card, indent=2) + "\n")

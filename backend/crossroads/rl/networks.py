@@ -43,8 +43,17 @@ from typing import TYPE_CHECKING
 import torch
 from torch import Tensor, nn
 
-from crossroads.constants import JERK_MAX, LEAD_DIM, PREVIEW_DIM, STATE_DIM, STEER_RATE_MAX, XI_RANGES
-from crossroads.constants import EGO_STATE_DIM, OTHER_STATE_DIM, TRACK_STATE_DIM
+from crossroads.constants import (
+    EGO_STATE_DIM,
+    JERK_MAX,
+    LEAD_DIM,
+    OTHER_STATE_DIM,
+    PREVIEW_DIM,
+    STATE_DIM,
+    STEER_RATE_MAX,
+    TRACK_STATE_DIM,
+    XI_RANGES,
+)
 from crossroads.idc.state import KIND_OF_SLOT, KINDS, N_OTHERS, network_input
 
 LOG_STD_MIN = -5.0  # (choice) std ≥ e⁻⁵ ≈ 0.007 in z
@@ -268,9 +277,10 @@ def widen_first_layer(state: dict[str, Tensor], net: nn.Module) -> dict[str, Ten
     blocks both read and the new blocks' weights are zero, so the result computes exactly what
     ``state`` did. A source reading a block ``net`` does not is refused (its inputs would be dropped
     unnoticed). Anything else passes unchanged (``load_state_dict`` then reports a real mismatch)."""
-    own = net.state_dict().get(FIRST_LAYER_WEIGHT)
+    own_state = net.state_dict()
+    own = own_state.get(FIRST_LAYER_WEIGHT)
     weight = state.get(FIRST_LAYER_WEIGHT)
-    pooled_here = any(key.startswith("encoder.") for key in net.state_dict())
+    pooled_here = any(key.startswith("encoder.") for key in own_state)
     pooled_there = any(key.startswith("encoder.") for key in state)
     if pooled_here != pooled_there:
         raise ValueError("the source networks read the participants " + ("flat" if pooled_here else "pooled")
