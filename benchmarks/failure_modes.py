@@ -6,7 +6,10 @@
 Runs the scenario's first N seeded episodes (the seeds of ``crossroads evaluate``) with a trained
 IDC policy and prints:
 
-* the outcomes, and each collision by where the other participant was (front / side / rear of the
+* the outcomes; each timeout by what held the ego at the end (``probing.timeout_cause``: a vehicle
+  ahead standing ≥ 30 s, the world's gridlock no driver passes; a shorter queue; or where the ego
+  stood and what was in its way), with how long the ego had stood;
+* each collision by where the other participant was (front / side / rear of the
   ego, from its centre in the ego's frame) and whether it was standing (< 0.5 m/s), with the ego's
   speed at impact;
 * for every collision, the state one second (``--look-back``) before impact put through the training model (the
@@ -56,6 +59,7 @@ from probing import (  # noqa: E402
     episode_endings,
     model_parser,
     open_loop_optimum,
+    timeout_cause,
     vehicle_ahead,
 )
 
@@ -138,6 +142,16 @@ def ahead_summary(sample: Samples) -> str:
             f"{np.median(gaps):.1f} m, the ego's speed median {np.median(speeds):.1f} m/s")
 
 
+def print_timeouts(held: dict[str, list[float]]) -> None:
+    """The timeouts by what held the ego at the end, with how long the ego had stood (median)."""
+    if not held:
+        return
+    print(f"timeouts ({sum(map(len, held.values()))}), by what held the ego at the end "
+          "[runs, the ego had stood: median s]:")
+    for cause, stood in sorted(held.items(), key=lambda item: -len(item[1])):
+        print(f"  {cause:<64}{len(stood):>4}   {np.median(stood):5.1f}")
+
+
 def main() -> None:
     parser = model_parser(__doc__.splitlines()[0], runs=50)
     parser.add_argument("--look-back", type=float, default=1.0, help="[s] before impact (≤ 5)")
@@ -154,10 +168,13 @@ def main() -> None:
     impact_speeds: list[float] = []
     modes: list[tuple[str, float]] = []  # (speed mode, vehicle ahead stood [s]) at the look-back
     looked_back: list[Samples] = []  # the state at the look-back of every collision
+    held: dict[str, list[float]] = {}  # timeout cause → how long the ego had stood at the end [s]
     with World(to_world_config(spec, args.scenario.parent)) as world:
         model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), preview=controller.preview)
         for end in episode_endings(world, controller, run_seeds(spec, args.runs), args.look_back):
             outcomes[end.outcome.kind] += 1
+            if end.outcome.kind == "timeout":
+                held.setdefault(timeout_cause(end.final), []).append(end.ego_stood_s)
             if end.outcome.kind != "collision":
                 continue
             snap = end.final.participants
@@ -170,6 +187,7 @@ def main() -> None:
 
     print(f"policy {args.policy} on {args.scenario} ({args.runs} seeded runs)")
     print("outcomes: " + ", ".join(f"{k} {v}" for k, v in outcomes.most_common()))
+    print_timeouts(held)
     if not impact_speeds:
         return
     print(f"collisions ({len(impact_speeds)}), by the other participant's place and motion:")

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from crossroads.constants import JERK_MAX, PENALTY_RHO, STEER_RATE_MAX
+from crossroads.constants import JERK_MAX, PENALTY_RHO, SIM_STEP_S, STEER_RATE_MAX
 from crossroads.idc.controller import Decision
 from crossroads.idc.decision import IdcController
 from crossroads.idc.observed import observed_others
@@ -27,11 +27,17 @@ from crossroads.planning import CandidatePath
 from crossroads.rl.buffer import Samples
 from crossroads.rl.model import IDCModel, Rollout, StateBatch
 from crossroads.rl.sampler import observation_sample
+from crossroads.sim.sumo import Snapshot
 from crossroads.sim.world import Observation, Outcome, World
 
 HORIZON = 25  # the paper's T, the training model's rollout length
 STANDING_MPS = 0.5  # a participant slower than this stands
 CORRIDOR_HALF_WIDTH_M = 2.5  # [m] |across| of a vehicle "ahead" of the ego
+IN_THE_WAY_M = 10.0  # [m] how far ahead of the ego's centre a participant still holds it up
+# a vehicle ahead standing this long holds the ego in one of the world's gridlocks, which no driver
+# can pass (docs/measurements/world-gridlock.md: of the rule controller's timeouts, 29 of 32 had
+# stood ≥ 41 s even with a 150 s timeout)
+GRIDLOCK_STOOD_S = 30.0
 ACTION_SCALE = torch.tensor([STEER_RATE_MAX, JERK_MAX])  # tanh(raw plan) × this = u = [Δδ, Δa]
 
 
@@ -49,6 +55,34 @@ def vehicle_ahead(ego: np.ndarray, others: np.ndarray) -> int | None:
     along, across = ego_frame(ego, others[vehicles, 0], others[vehicles, 1])
     ahead = np.flatnonzero((along > 0.0) & (np.abs(across) < CORRIDOR_HALF_WIDTH_M))
     return int(vehicles[ahead[np.argmin(along[ahead])]]) if len(ahead) else None
+
+
+def in_the_way(ego: np.ndarray, snap: Snapshot) -> int | None:
+    """The row of ``snap`` closest ahead of ``ego`` (any kind) within ``IN_THE_WAY_M`` of its centre and
+    ``CORRIDOR_HALF_WIDTH_M`` of its axis, or None."""
+    along, across = ego_frame(ego, np.asarray(snap.x), np.asarray(snap.y))
+    near = np.flatnonzero((along > 0.0) & (along < IN_THE_WAY_M) & (np.abs(across) < CORRIDOR_HALF_WIDTH_M))
+    return int(near[np.argmin(along[near])]) if len(near) else None
+
+
+def timeout_cause(final: Observation) -> str:
+    """What held the ego when its episode timed out, from the last observation: the world's gridlock
+    (a vehicle ahead standing ≥ ``GRIDLOCK_STOOD_S``), a shorter queue, or else where the ego was
+    (before the stop line or inside the junction), whether it stood, and what was in its way."""
+    stood = final.front_vehicle_stopped_s
+    if stood >= GRIDLOCK_STOOD_S:
+        return f"behind a vehicle standing ≥ {GRIDLOCK_STOOD_S:g} s"
+    if stood > 0.0:
+        return f"behind a vehicle standing < {GRIDLOCK_STOOD_S:g} s"
+    place = "inside the junction" if final.past_stop_line else "before the stop line"
+    motion = "standing" if final.ego[2] < STANDING_MPS else "moving"
+    snap = final.participants
+    row = in_the_way(final.ego, snap)
+    if row is None:
+        way = f"nothing within {IN_THE_WAY_M:g} m ahead"
+    else:
+        way = f"a {'standing' if snap.speed[row] < STANDING_MPS else 'moving'} {snap.kind[row]} ahead"
+    return f"{place}, ego {motion}, {way}"
 
 
 def model_parser(description: str, runs: int) -> argparse.ArgumentParser:
@@ -84,6 +118,7 @@ class Ending:
     before: Samples  # the state (one row) on the chosen path, ``look_back_s`` before the end
     mode: str  # the speed mode then
     stood_s: float  # how long the vehicle ahead had stood then [s]
+    ego_stood_s: float  # how long the ego itself had stood (< STANDING_MPS) at the end [s]
 
 
 def episode_endings(world: World, controller: IdcController, seeds: Sequence[int],
@@ -95,14 +130,15 @@ def episode_endings(world: World, controller: IdcController, seeds: Sequence[int
         obs = world.reset(seed)
         controller.reset(world.candidates)
         recent: deque[tuple[Samples, str, float]] = deque(maxlen=steps + 1)
-        outcome = None
+        outcome, ego_stood_steps = None, 0
         while outcome is None:
             decision = controller.decide(obs)
             recent.append((observation_sample(obs, int(decision.path_index), decision.speed_mode == "stop"),
                            decision.speed_mode, obs.front_vehicle_stopped_s))
             obs, outcome = world.step(decision.action)
+            ego_stood_steps = ego_stood_steps + 1 if obs.ego[2] < STANDING_MPS else 0
         before, mode, stood = recent[0]
-        yield Ending(outcome, obs, before, mode, stood)
+        yield Ending(outcome, obs, before, mode, stood, ego_stood_steps * SIM_STEP_S)
 
 
 def collision_lookbacks(world: World, controller: IdcController, seeds: Sequence[int],
