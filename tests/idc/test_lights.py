@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from crossroads.constants import CONGESTION_STOP_S, YELLOW_BRAKE_DECEL, YELLOW_S
-from crossroads.idc.lights import braking_needs, can_stop_before_red, choose_speed_mode
+from crossroads.constants import ACCEL_MAX, CONGESTION_STOP_S, YELLOW_BRAKE_DECEL, YELLOW_S
+from crossroads.idc.lights import braking_needs, can_reach_line_before_red, can_stop_before_red, choose_speed_mode
 
 
 def mode(**kw) -> str:
@@ -40,8 +40,16 @@ def test_yellow_but_too_close_passes() -> None:
     assert mode(light="yellow", speed_mps=4.8, distance_to_stop_line_m=4.0, yellow_remaining_s=2.5) == "pass"
 
 
-def test_yellow_but_too_little_time_passes() -> None:
-    assert mode(light="yellow", speed_mps=4.8, distance_to_stop_line_m=50.0, yellow_remaining_s=1.5) == "pass"
+def test_yellow_too_little_time_to_stop_passes_where_the_line_is_within_reach() -> None:
+    # t_e = 2 s > t_y: not C2; 1.5 s at 4.8 m/s and full acceleration cover 8.9 m ≥ 6 m
+    assert mode(light="yellow", speed_mps=4.8, distance_to_stop_line_m=6.0, yellow_remaining_s=1.5) == "pass"
+
+
+def test_yellow_too_little_time_to_stop_stops_where_no_rushing_beats_the_red() -> None:
+    """The (choice) step 5: not C2, but the line out of reach before red, so passing would only run
+    the red; among them the measured case (seed 1428211589: 2.3 m/s, 4.3 m, 0.6 s of yellow)."""
+    assert mode(light="yellow", speed_mps=4.8, distance_to_stop_line_m=50.0, yellow_remaining_s=1.5) == "stop"
+    assert mode(light="yellow", speed_mps=2.31, distance_to_stop_line_m=4.3, yellow_remaining_s=0.6) == "stop"
 
 
 def test_green_passes() -> None:
@@ -57,6 +65,14 @@ def test_c2() -> None:
     assert not can_stop_before_red(distance_to_stop_line_m=d_e - 0.01, speed_mps=12.0, yellow_remaining_s=t_e)
     assert not can_stop_before_red(distance_to_stop_line_m=d_e, speed_mps=12.0, yellow_remaining_s=t_e - 0.01)
     assert can_stop_before_red(distance_to_stop_line_m=0.0, speed_mps=0.0, yellow_remaining_s=0.0)
+
+
+def test_reach_before_red() -> None:
+    reach = 3.0 * 1.2 + 0.5 * ACCEL_MAX * 1.2 * 1.2
+    assert can_reach_line_before_red(distance_to_stop_line_m=reach, speed_mps=3.0, yellow_remaining_s=1.2)
+    assert not can_reach_line_before_red(distance_to_stop_line_m=reach + 0.01, speed_mps=3.0, yellow_remaining_s=1.2)
+    assert can_reach_line_before_red(distance_to_stop_line_m=0.0, speed_mps=0.0, yellow_remaining_s=0.0)
+    assert not can_reach_line_before_red(distance_to_stop_line_m=0.1, speed_mps=5.0, yellow_remaining_s=-0.1)
 
 
 def test_unknown_light() -> None:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from shapely.geometry import LineString, Point
 
-from crossroads.constants import PATH_SAMPLE_SPACING_M, V_LIMIT_MPS
+from crossroads.constants import PATH_SAMPLE_SPACING_M, STOP_SHORT_M, V_LIMIT_MPS
 from crossroads.geometry import wrap_angle
 from crossroads.network import catalogue
 from crossroads.network.model import TASKS
@@ -78,7 +78,10 @@ def test_speed_profiles_at_their_key_points(name: str) -> None:
         assert np.allclose(c.v_pass[c.segment == "exit"], cruise)
         assert np.allclose(c.v_stop[curve], 0.0)
         assert np.allclose(c.v_stop[c.segment == "exit"], cruise)
-        d = c.s_stop_line - c.s  # distance to the stop line on the entrance route
-        far, near = (c.segment == "entrance") & (d >= 30.0), (c.segment == "entrance") & (d < 30.0)
+        # distance to where the centre stands with the front bumper on the stop line
+        d = c.s_stop_line - STOP_SHORT_M - c.s
+        entrance = c.segment == "entrance"
+        far, near, rest = entrance & (d >= 30.0), entrance & (d < 30.0) & (d > 0.0), entrance & (d <= 0.0)
         assert np.allclose(c.v_stop[far], cruise)
         assert np.allclose(c.v_stop[near], cruise * np.sqrt(d[near] / 30.0))
+        assert rest.any() and np.allclose(c.v_stop[rest], 0.0)  # the bumper's last 2.4 m to the line

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from crossroads.constants import KMH, V_LIMIT_MPS
+from crossroads.constants import EGO_LENGTH_M, KMH, STOP_SHORT_M, V_LIMIT_MPS
 from crossroads.planning import (
     inside_speed,
     outside_speed,
@@ -39,17 +39,26 @@ def test_pass_mode_key_points() -> None:
 
 
 def test_stop_mode_key_points() -> None:
+    """The profile is of the ego's centre: it reaches 0 where the front bumper meets the line."""
+    rest = S1 - STOP_SHORT_M
+    assert STOP_SHORT_M == pytest.approx(EGO_LENGTH_M / 2)
     assert stop_speed(0.0, S1, S4) == pytest.approx(V0)  # X0
-    assert stop_speed(S1 - 30.0, S1, S4) == pytest.approx(V0)  # deceleration starts
-    assert stop_speed(S1 - 15.0, S1, S4) == pytest.approx(V0 * math.sqrt(0.5))
-    assert stop_speed(S1, S1, S4) == 0.0  # at the stop line
+    assert stop_speed(rest - 30.0, S1, S4) == pytest.approx(V0)  # deceleration starts
+    assert stop_speed(rest - 15.0, S1, S4) == pytest.approx(V0 * math.sqrt(0.5))
+    assert stop_speed(rest, S1, S4) == 0.0  # the front bumper at the stop line
+    assert stop_speed(S1 - 1.0, S1, S4) == 0.0  # the bumper would be past it
+    assert stop_speed(S1, S1, S4) == 0.0  # the centre at the stop line
     assert stop_speed(65.0, S1, S4) == 0.0  # inside
     assert stop_speed(S4, S1, S4) == 0.0
     assert stop_speed(S4 + 5.0, S1, S4) == pytest.approx(V0)  # after the exit
+    assert stop_speed(S1 - 15.0, S1, S4, stop_short_m=0.0) == pytest.approx(V0 * math.sqrt(0.5))  # the centre's line
+    with pytest.raises(ValueError, match="stop_short_m"):
+        stop_speed(0.0, S1, S4, stop_short_m=-1.0)
 
 
 def test_stop_mode_is_uniform_deceleration() -> None:
-    s = np.linspace(S1 - 30.0, S1, 301)
+    rest = S1 - STOP_SHORT_M
+    s = np.linspace(rest - 30.0, rest, 301)
     v = stop_speed(s, S1, S4)
     # v² is linear in s: constant deceleration v0²/(2·30 m)
     decel = -np.gradient(v**2, s) / 2.0

@@ -3,7 +3,8 @@
 * Path: the candidate nearest the ego when the episode starts, kept to the end (no path switching).
 * Speed mode: the paper's traffic-light logic (SPEC §7, :func:`crossroads.idc.lights.choose_speed_mode`).
 * Tracking: pure pursuit on the path for the steering angle, a proportional law on the mode's speed
-  profile for the acceleration; both turned into the rates [Δδ, Δa] the ego takes as actions.
+  profile for the acceleration, and in the stop mode a uniform deceleration to a stand just short of
+  the stop line (``STOP_LINE_GAP_M``); both turned into the rates [Δδ, Δa] the ego takes as actions.
 * Yielding: if a perceived participant is (or, at constant velocity, will be within a few seconds)
   on the path ahead, brake to stop short of it. Simple and conservative: it never negotiates gaps.
 """
@@ -43,6 +44,10 @@ CONFLICT_HALF_WIDTH_M = 2.2  # [m] a participant this close to the path ahead bl
 PREDICTION_HORIZON_S = 3.0  # [s] constant-velocity prediction of the others
 PREDICTION_STEP_S = 0.5  # [s]
 STOP_GAP_M = 3.0  # [m] stop this far short of a conflict (front bumper to conflict point)
+# [m] in the stop mode, stop the front bumper this far short of the stop line. Why a stop of its
+# own and not the stop profile alone: the speed loop lags a falling reference by decel / SPEED_GAIN
+# (1.16 / 0.8 ≈ 1.5 m/s), so it crossed a red line on an empty road at 1.7 m/s (session 18)
+STOP_LINE_GAP_M = 0.5
 MIN_CHECK_DISTANCE_M = 10.0  # [m] the path ahead that is always checked for conflicts
 CHECK_TIME_S = 3.0  # [s] plus the distance covered in this time at the current speed
 SEARCH_BEHIND = 10  # path points searched behind the last nearest one (5 m at 0.5 m spacing)
@@ -155,6 +160,9 @@ class RuleBasedController:
 
         _, _, _, v_ref = table.reference_at(s_ego + max(vx, 1.0) * DT_S * 5, mode)
         accel_target = SPEED_GAIN * (v_ref - vx)
+        if mode == "stop" and not observation.past_stop_line:
+            line_gap = observation.distance_to_stop_line_m - STOP_LINE_GAP_M
+            accel_target = min(accel_target, -vx * vx / (2.0 * line_gap) if line_gap > 0.2 else ACCEL_MIN)
         conflict_s = self._conflict_distance(observation, table, s_ego, vx)
         if conflict_s is not None:
             gap = conflict_s - s_ego - EGO_LENGTH_M / 2.0 - STOP_GAP_M

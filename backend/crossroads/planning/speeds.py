@@ -12,11 +12,14 @@ Pass mode: 0.8·V_limit outside the intersection, min(0.5·V_limit, 30 km/h) ins
 figure: the reference is a target, not a trajectory; the IDC policy smooths it through its
 acceleration and jerk limits and its Δv weight. A ramp would only move the target earlier.
 
-Stop mode: 0.8·V_limit until ``decel_distance_m`` (30 m) before the stop line, then uniform
-deceleration to 0 at the stop line, ``v = v0·sqrt(d / 30 m)`` with ``d`` the distance left to the
-stop line (constant deceleration v0²/(2·30 m) ≈ 1.16 m/s² for V_limit = 37.5 km/h), 0 inside the
-intersection, 0.8·V_limit again after the exit point. If the entrance route is shorter than 30 m the
-profile simply starts part-way down the deceleration.
+Stop mode: 0.8·V_limit until ``decel_distance_m`` (30 m) before the point where the ego's front
+bumper meets the stop line, then uniform deceleration to 0 there, ``v = v0·sqrt(d / 30 m)`` with
+``d`` the distance left to that point (constant deceleration v0²/(2·30 m) ≈ 1.16 m/s² for V_limit =
+37.5 km/h), 0 from there through the intersection, 0.8·V_limit again after the exit point. If the
+entrance route is shorter than 30 m the profile simply starts part-way down the deceleration.
+**(choice)** That point is ``stop_short_m`` (``constants.STOP_SHORT_M``, half the ego's length)
+before the stop line, since ``s`` is the arc length of the ego's centre: the paper says "decelerate
+uniformly to the stop line" and counts a violation when the vehicle crosses it.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from crossroads.constants import (
     PASS_SPEED_FACTOR_INSIDE,
     PASS_SPEED_FACTOR_OUTSIDE,
     STOP_DECEL_DISTANCE_M,
+    STOP_SHORT_M,
     V_LIMIT_MPS,
 )
 from crossroads.geometry import FloatArray
@@ -76,16 +80,21 @@ def stop_speed(
     s_exit: float,
     v_limit_mps: float = V_LIMIT_MPS,
     decel_distance_m: float = STOP_DECEL_DISTANCE_M,
+    stop_short_m: float = STOP_SHORT_M,
 ) -> FloatArray | float:
-    """Stop-mode reference speed [m/s] at arc length(s) ``s`` [m] (a float for a scalar ``s``)."""
+    """Stop-mode reference speed [m/s] at arc length(s) ``s`` [m] of the ego's centre (a float for
+    a scalar ``s``): 0 from ``stop_short_m`` before the stop line on (module docstring)."""
     _check(s_stop_line, s_exit, v_limit_mps)
     if not decel_distance_m > 0.0:
         raise ValueError(f"decel_distance_m must be positive, got {decel_distance_m}")
     ss = np.asarray(s, dtype=np.float64)
     v0 = outside_speed(v_limit_mps)
-    to_go = np.clip(s_stop_line - ss, 0.0, decel_distance_m)  # distance left to the stop line [m]
+    if stop_short_m < 0.0:
+        raise ValueError(f"stop_short_m must be >= 0, got {stop_short_m}")
+    rest = s_stop_line - stop_short_m  # where the centre stands when the front bumper is at the line
+    to_go = np.clip(rest - ss, 0.0, decel_distance_m)  # distance left to that point [m]
     approach = v0 * np.sqrt(to_go / decel_distance_m)
-    v = np.where(ss > s_exit, v0, np.where(ss >= s_stop_line, 0.0, approach))
+    v = np.where(ss > s_exit, v0, np.where(ss >= rest, 0.0, approach))
     return _out(v)
 
 
