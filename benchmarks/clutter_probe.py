@@ -54,6 +54,8 @@ from probing import (  # noqa: E402
 )
 
 
+FIRST_SLOT_OF_KIND = {kind: KIND_OF_SLOT.index(kind) for kind in set(KIND_OF_SLOT)}  # where each block begins
+
 
 @dataclass(frozen=True)
 class Probe:
@@ -132,12 +134,11 @@ def pair_as_built(sample: Samples, row: int, car: int, other: int) -> tuple[Samp
     ego = sample.ego[row].astype(np.float64)
     others = np.tile(pad_participant(ego), (len(KIND_OF_SLOT), 1)).astype(sample.others.dtype)
     kappa = np.zeros_like(sample.kappa[row:row + 1])
-    first = {kind: KIND_OF_SLOT.index(kind) for kind in set(KIND_OF_SLOT)}
     if KIND_OF_SLOT[other] == "vehicle":
         distance = lambda k: float(np.hypot(*(sample.others[row, k, :2] - ego[:2])))  # noqa: E731
         placed = dict(zip(sorted((car, other), key=distance), (0, 1), strict=True))
     else:
-        placed = {car: 0, other: first[KIND_OF_SLOT[other]]}
+        placed = {car: 0, other: FIRST_SLOT_OF_KIND[KIND_OF_SLOT[other]]}
     for source, to in placed.items():
         others[to], kappa[0, to] = sample.others[row, source], sample.kappa[row, source]
     one = sample.take(slice(row, row + 1))

@@ -111,7 +111,7 @@ EGO_WIDTH_M: Final = 2.0  # [m]
 # (choice) How far before the stop line the stop profile reaches 0: the paths are of the ego's
 # centre, and the judge (and the law) mean its front bumper. Without it the stop mode brought the
 # centre to rest on the line with the bumper 2.4 m past it: measured (session 18), the rule
-# controller and APG both crossed a red line on an empty road at 4.1 and 5.3 m/s.
+# controller and APG both crossed a red line on an empty road, at 3.4 and 5.3 m/s.
 STOP_SHORT_M: Final = EGO_LENGTH_M / 2.0  # [m]
 
 # ξ ranges of the adversary, (low, high): x [m], y [m], v [m/s], φ [rad].

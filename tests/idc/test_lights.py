@@ -47,9 +47,9 @@ def test_yellow_too_little_time_to_stop_passes_where_the_line_is_within_reach() 
 
 def test_yellow_too_little_time_to_stop_stops_where_no_rushing_beats_the_red() -> None:
     """The (choice) step 5: not C2, but the line out of reach before red, so passing would only run
-    the red; among them the measured case (seed 1428211589: 2.3 m/s, 4.3 m, 0.6 s of yellow)."""
+    the red; among them the measured case (seed 1428211589: 2.31 m/s, 1.96 m, 0.6 s of yellow)."""
     assert mode(light="yellow", speed_mps=4.8, distance_to_stop_line_m=50.0, yellow_remaining_s=1.5) == "stop"
-    assert mode(light="yellow", speed_mps=2.31, distance_to_stop_line_m=4.3, yellow_remaining_s=0.6) == "stop"
+    assert mode(light="yellow", speed_mps=2.31, distance_to_stop_line_m=1.96, yellow_remaining_s=0.6) == "stop"
 
 
 def test_green_passes() -> None:

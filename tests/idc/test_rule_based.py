@@ -137,5 +137,5 @@ def test_stops_at_a_red_line_and_goes_on_green() -> None:
                 gaps_standing_on_red.append(obs.distance_to_stop_line_m)
             obs, outcome = world.step(controller.decide(obs).action)
     assert outcome.kind == "passed", outcome
-    assert len(gaps_standing_on_red) > 100  # it waited for the green (the red lasts ~37 s here)
+    assert len(gaps_standing_on_red) > 100  # it waited for the green (the ego's red lasts 40 s here)
     assert 0.0 < min(gaps_standing_on_red) and max(gaps_standing_on_red) < 1.0

@@ -19,9 +19,9 @@ Why step 5: the paper gives the pass mode when C2 fails "to encourage rushing be
 lights". Evaluated at every step, C2 also fails for a slow ego far from the line as the yellow runs
 out (t_y < t_e), where no rushing beats the red. Measured (session 18, run 17 with the shield, the
 nominal left turn with a 150 s timeout, 200 seeds): 9 crossed the line on red, 8 of them within
-2.7 s of its start; seed 1428211589 was in the stop mode 6 m short of the line at 0.6 m/s, sped up
-to 2.3 m/s along the stop profile, got the pass mode 0.6 s before red at 4.3 m (t_e 0.96 s) and
-crossed 0.8 s into the red. Step 5 keeps the stop mode there.
+2.7 s of its start; seed 1428211589 was in the stop mode with its bumper 3.8 m short of the line at
+0.6 m/s, sped up to 2.3 m/s along the stop profile, got the pass mode 0.6 s before red at 2.0 m
+(D_e 1.1 m, but t_e 0.96 s) and crossed 0.8 s into the red. Step 5 keeps the stop mode there.
 """
 
 from __future__ import annotations

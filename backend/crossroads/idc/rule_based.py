@@ -102,6 +102,12 @@ def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def _stop_within(speed: float, gap_m: float, least_gap_m: float) -> float:
+    """The acceleration [m/s²] of a uniform deceleration from ``speed`` to a stand in ``gap_m``;
+    full braking once the gap is down to ``least_gap_m``."""
+    return -speed * speed / (2.0 * gap_m) if gap_m > least_gap_m else ACCEL_MIN
+
+
 def _clip(x: float, lo: float, hi: float) -> float:
     """``np.clip`` of one Python float, without numpy's per-call overhead."""
     return min(max(x, lo), hi)
@@ -162,13 +168,11 @@ class RuleBasedController:
         accel_target = SPEED_GAIN * (v_ref - vx)
         if mode == "stop" and not observation.past_stop_line:
             line_gap = observation.distance_to_stop_line_m - STOP_LINE_GAP_M
-            accel_target = min(accel_target, -vx * vx / (2.0 * line_gap) if line_gap > 0.2 else ACCEL_MIN)
+            accel_target = min(accel_target, _stop_within(vx, line_gap, 0.2))
         conflict_s = self._conflict_distance(observation, table, s_ego, vx)
         if conflict_s is not None:
             gap = conflict_s - s_ego - EGO_LENGTH_M / 2.0 - STOP_GAP_M
-            # uniform deceleration to a stop in the gap; full braking once the gap is gone
-            stop_accel = -vx * vx / (2.0 * gap) if gap > 0.5 else ACCEL_MIN
-            accel_target = min(accel_target, stop_accel)
+            accel_target = min(accel_target, _stop_within(vx, gap, 0.5))
         accel_target = _clip(accel_target, ACCEL_MIN, ACCEL_MAX)
         action = np.array([
             _clip(STEER_RATE_GAIN * (steer_target - delta), -STEER_RATE_MAX, STEER_RATE_MAX),

@@ -87,10 +87,10 @@ def stop_speed(
     _check(s_stop_line, s_exit, v_limit_mps)
     if not decel_distance_m > 0.0:
         raise ValueError(f"decel_distance_m must be positive, got {decel_distance_m}")
-    ss = np.asarray(s, dtype=np.float64)
-    v0 = outside_speed(v_limit_mps)
     if stop_short_m < 0.0:
         raise ValueError(f"stop_short_m must be >= 0, got {stop_short_m}")
+    ss = np.asarray(s, dtype=np.float64)
+    v0 = outside_speed(v_limit_mps)
     rest = s_stop_line - stop_short_m  # where the centre stands when the front bumper is at the line
     to_go = np.clip(rest - ss, 0.0, decel_distance_m)  # distance left to that point [m]
     approach = v0 * np.sqrt(to_go / decel_distance_m)
