@@ -113,6 +113,10 @@ EGO_WIDTH_M: Final = 2.0  # [m]
 # centre to rest on the line with the bumper 2.4 m past it: measured (session 18), the rule
 # controller and APG both crossed a red line on an empty road, at 3.4 and 5.3 m/s.
 STOP_SHORT_M: Final = EGO_LENGTH_M / 2.0  # [m]
+# (choice) where a controller stands at a line that holds it: its front bumper this far short, so
+# that a stop a few cm off SUMO's moves still leaves the bumper behind the line (the rule
+# controller's own stop and the safety shield's line, idc.rule_based and idc.shield)
+STOP_LINE_GAP_M: Final = 0.5  # [m]
 
 # ξ ranges of the adversary, (low, high): x [m], y [m], v [m/s], φ [rad].
 XI_RANGES: Final[dict[str, tuple[float, float]]] = {

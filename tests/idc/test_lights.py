@@ -5,7 +5,8 @@ from __future__ import annotations
 import pytest
 
 from crossroads.constants import ACCEL_MAX, CONGESTION_STOP_S, YELLOW_BRAKE_DECEL, YELLOW_S
-from crossroads.idc.lights import braking_needs, can_reach_line_before_red, can_stop_before_red, choose_speed_mode
+from crossroads.idc.lights import (braking_needs, can_reach_line_before_red, can_stop_before_red, choose_speed_mode,
+                                   light_holds_at_line)
 
 
 def mode(**kw) -> str:
@@ -78,3 +79,22 @@ def test_reach_before_red() -> None:
 def test_unknown_light() -> None:
     with pytest.raises(ValueError):
         mode(light="blue")
+
+
+def test_the_line_holds_the_ego_where_the_light_stops_it_and_not_for_congestion() -> None:
+    """light_holds_at_line (the safety shield's line) is the stop mode less the congestion rule."""
+    for light in ("green", "yellow", "red"):
+        for past in (False, True):
+            for distance, speed, left in ((50.0, 5.0, YELLOW_S), (3.0, 8.0, 1.0), (30.0, 1.0, 0.5), (1.0, 0.0, 2.0)):
+                where = dict(past_stop_line=past, light=light, distance_to_stop_line_m=distance, speed_mps=speed,
+                             yellow_remaining_s=left)
+                holds = light_holds_at_line(**where)
+                assert holds == (mode(**where) == "stop")
+                assert mode(**where, front_vehicle_stopped_s=CONGESTION_STOP_S + 1.0) == "stop"
+    assert not light_holds_at_line(past_stop_line=False, light="green", distance_to_stop_line_m=5.0, speed_mps=5.0,
+                                   yellow_remaining_s=YELLOW_S)
+    assert light_holds_at_line(past_stop_line=False, light="red", distance_to_stop_line_m=5.0, speed_mps=5.0,
+                               yellow_remaining_s=0.0)
+    with pytest.raises(ValueError, match="blue"):
+        light_holds_at_line(past_stop_line=False, light="blue", distance_to_stop_line_m=5.0, speed_mps=5.0,
+                            yellow_remaining_s=0.0)

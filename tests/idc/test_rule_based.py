@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from crossroads.constants import ACCEL_MAX, ACCEL_MIN, DT_S, EGO_LENGTH_M, JERK_MAX, STEER_MAX, STEER_RATE_MAX
+from crossroads.constants import (ACCEL_MAX, ACCEL_MIN, DT_S, EGO_LENGTH_M, JERK_MAX, STEER_MAX, STEER_RATE_MAX,
+                                 STOP_LINE_GAP_M)
 from crossroads.geometry import wrap_angle
 from crossroads.idc import rule_based as R
 from crossroads.idc.lights import choose_speed_mode
@@ -52,7 +53,7 @@ class _PlainController:
         _, _, _, v_ref = path.reference_at(s_ego + max(vx, 1.0) * DT_S * 5, mode)
         accel_target = R.SPEED_GAIN * (v_ref - vx)
         if mode == "stop" and not observation.past_stop_line:
-            line_gap = observation.distance_to_stop_line_m - R.STOP_LINE_GAP_M
+            line_gap = observation.distance_to_stop_line_m - STOP_LINE_GAP_M
             accel_target = min(accel_target, -vx * vx / (2.0 * line_gap) if line_gap > 0.2 else ACCEL_MIN)
         conflict_s = self.conflict_distance(observation, path, s_ego, vx)
         if conflict_s is not None:

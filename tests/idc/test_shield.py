@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from crossroads.constants import JERK_MAX, OTHER_DECEL_MPS2
+from crossroads.constants import JERK_MAX, OTHER_DECEL_MPS2, STOP_LINE_GAP_M
 from crossroads.idc.constraints import EGO_CIRCLE_OFFSET_M, EGO_RADIUS_M
 from crossroads.idc.shield import (
     SHIELD_CLEARANCE_M,
@@ -101,3 +101,35 @@ def test_standing_inside_the_clearance_already_is_no_reason_to_brake_for_ever() 
     queued = _scene((0.5 * (4.8 + CAR_L) + 0.6, 0.0, 0.0, 0.0))
     assert shield_action(standing, *queued, np.array([0.0, JERK_MAX])).braking
     assert not shield_action(standing, *queued, np.array([0.0, -JERK_MAX])).braking
+
+
+def test_a_line_that_holds_the_ego_is_a_place_to_stand_short_of() -> None:
+    """In the stop mode of a red or yellow light the stop line is a standing obstacle: the backups
+    must stand STOP_LINE_GAP_M short of it. *brake* travels f_ego's braking distance."""
+    empty = _scene()
+    stop_now = float(braking_distance_m(8.0, 0.0))
+    line = stop_now + STOP_LINE_GAP_M + 0.1  # braking now stands 0.1 m behind the gap, accelerating first does not
+    verdict = shield_action(EGO, *empty, ACCELERATE, line_m=line)
+    assert verdict.backups.brake_past_line_m == pytest.approx(-0.1, abs=0.02)
+    assert verdict.backups.go_past_line_m > 0.0
+    assert verdict.braking and verdict.action[1] == -JERK_MAX
+    assert not shield_action(EGO, *empty, ACCELERATE, line_m=stop_now + 10.0).braking
+    assert not shield_action(EGO, *empty, ACCELERATE).braking  # no line: nothing ahead
+    unheld = backups(EGO, *empty, ACCELERATE)
+    assert unheld.go_past_line_m == -np.inf and unheld.brake_past_line_m == -np.inf
+
+
+def test_standing_at_a_red_line_it_holds_the_ego_until_the_line_lets_go() -> None:
+    standing = EGO.copy()
+    standing[2] = 0.0
+    at_line = STOP_LINE_GAP_M + 0.005  # standing at the gap: a step of Δa = 4.5 m/s³ then braking creeps 9 mm
+    assert shield_action(standing, *_scene(), ACCELERATE, line_m=at_line).braking
+    assert not shield_action(standing, *_scene(), np.array([0.0, -JERK_MAX]), line_m=at_line).braking
+    assert not shield_action(standing, *_scene(), ACCELERATE, line_m=None).braking  # green: go
+
+
+def test_too_late_to_stand_short_of_the_line_it_still_brakes_to_cross_less_far() -> None:
+    line = 2.0  # 8 m/s, 2 m short: no backup stands before it, braking crosses least
+    verdict = shield_action(EGO, *_scene(), ACCELERATE, line_m=line)
+    assert verdict.backups.brake_past_line_m > 0.0
+    assert verdict.braking

@@ -61,22 +61,32 @@ def can_reach_line_before_red(
     return distance_to_stop_line_m <= v * t + 0.5 * accel_mps2 * t * t
 
 
+def light_holds_at_line(
+    *, past_stop_line: bool, light: str, distance_to_stop_line_m: float, speed_mps: float,
+    yellow_remaining_s: float,
+) -> bool:
+    """Whether the light itself makes the ego stop at the line (steps 2–5 of the module docstring):
+    not past it, and red, or yellow with C2 or with the line out of reach before red. The safety
+    shield treats the line as a standing obstacle exactly then (:mod:`crossroads.idc.shield`)."""
+    if light not in LIGHTS:
+        raise ValueError(f"unknown light {light!r}; expected one of {LIGHTS}")
+    if past_stop_line:
+        return False
+    if light == "red":
+        return True
+    if light == "yellow":
+        where = {"distance_to_stop_line_m": distance_to_stop_line_m, "speed_mps": speed_mps,
+                 "yellow_remaining_s": yellow_remaining_s}
+        return can_stop_before_red(**where) or not can_reach_line_before_red(**where)
+    return False
+
+
 def choose_speed_mode(
     *, front_vehicle_stopped_s: float, past_stop_line: bool, light: str,
     distance_to_stop_line_m: float, speed_mps: float, yellow_remaining_s: float,
 ) -> SpeedMode:
     """The speed mode of the flowchart (module docstring); ``light`` is "green" | "yellow" | "red"."""
-    if light not in LIGHTS:
-        raise ValueError(f"unknown light {light!r}; expected one of {LIGHTS}")
-    if front_vehicle_stopped_s > CONGESTION_STOP_S:
-        return "stop"
-    if past_stop_line:
-        return "pass"
-    if light == "red":
-        return "stop"
-    if light == "yellow":
-        where = {"distance_to_stop_line_m": distance_to_stop_line_m, "speed_mps": speed_mps,
-                 "yellow_remaining_s": yellow_remaining_s}
-        if can_stop_before_red(**where) or not can_reach_line_before_red(**where):
-            return "stop"
-    return "pass"
+    holds = light_holds_at_line(past_stop_line=past_stop_line, light=light,
+                                distance_to_stop_line_m=distance_to_stop_line_m, speed_mps=speed_mps,
+                                yellow_remaining_s=yellow_remaining_s)
+    return "stop" if holds or front_vehicle_stopped_s > CONGESTION_STOP_S else "pass"

@@ -28,6 +28,7 @@ from crossroads.constants import (
     L_R,
     STEER_MAX,
     STEER_RATE_MAX,
+    STOP_LINE_GAP_M,
 )
 from crossroads.idc.controller import Decision, SpeedMode
 from crossroads.idc.lights import choose_speed_mode
@@ -44,10 +45,9 @@ CONFLICT_HALF_WIDTH_M = 2.2  # [m] a participant this close to the path ahead bl
 PREDICTION_HORIZON_S = 3.0  # [s] constant-velocity prediction of the others
 PREDICTION_STEP_S = 0.5  # [s]
 STOP_GAP_M = 3.0  # [m] stop this far short of a conflict (front bumper to conflict point)
-# [m] in the stop mode, stop the front bumper this far short of the stop line. Why a stop of its
-# own and not the stop profile alone: the speed loop lags a falling reference by decel / SPEED_GAIN
-# (1.16 / 0.8 ≈ 1.5 m/s), so it crossed a red line on an empty road at 1.7 m/s (session 18)
-STOP_LINE_GAP_M = 0.5
+# In the stop mode it stops the front bumper constants.STOP_LINE_GAP_M short of the stop line. Why a
+# stop of its own and not the stop profile alone: the speed loop lags a falling reference by decel /
+# SPEED_GAIN (1.16 / 0.8 ≈ 1.5 m/s), so it crossed a red line on an empty road at 1.7 m/s (session 18)
 MIN_CHECK_DISTANCE_M = 10.0  # [m] the path ahead that is always checked for conflicts
 CHECK_TIME_S = 3.0  # [s] plus the distance covered in this time at the current speed
 SEARCH_BEHIND = 10  # path points searched behind the last nearest one (5 m at 0.5 m spacing)

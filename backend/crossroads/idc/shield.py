@@ -49,7 +49,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from crossroads.constants import DT_S, JERK_MAX, OTHER_DECEL_MPS2, TRACK_STATE_DIM
+from crossroads.constants import DT_S, JERK_MAX, OTHER_DECEL_MPS2, STOP_LINE_GAP_M, TRACK_STATE_DIM
 from crossroads.idc.constraints import SAFETY_MARGIN_M, safety_constraints
 from crossroads.idc.state import KIND_ROWS, N_OTHERS, O_L, O_PHI, O_PX, O_PY, O_V, PHI, PX, PY
 from crossroads.sim.ego import ego_step
@@ -109,16 +109,27 @@ def followers(ego: np.ndarray, others: np.ndarray) -> np.ndarray:
 
 
 class Backups(NamedTuple):
-    """How the two backups fare against the predicted participants (module docstring)."""
+    """How the two backups fare against the predicted participants and the stop line (module
+    docstring); an overlap > 0 says the backup enters the clearance, or passes the line's gap."""
 
-    go_overlap_m: float  # deepest intrusion into the clearance along *go* [m] (> 0: it is entered)
+    go_overlap_m: float  # deepest intrusion along *go* [m]: the larger of the two below
     brake_overlap_m: float  # the same along *brake*
+    go_past_line_m: float = -np.inf  # how far *go* ends past the point STOP_LINE_GAP_M short of the line
+    brake_past_line_m: float = -np.inf  # the same along *brake* (−inf: no line holds the ego)
+
+
+def travelled_m(start: np.ndarray, egos: np.ndarray) -> np.ndarray:
+    """The distance (n,) each of the n rollouts ``egos`` (steps, n, 8) from ``start`` (8,) covers:
+    the length of its polyline of centres (the paths near a stop line are straight to within mm)."""
+    points = np.concatenate([np.broadcast_to(start[[PX, PY]], (1, egos.shape[1], 2)), egos[:, :, [PX, PY]]])
+    return np.linalg.norm(np.diff(points, axis=0), axis=-1).sum(axis=0)
 
 
 def backups(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.ndarray,
-            steps: int = SHIELD_HORIZON_STEPS) -> Backups:
+            steps: int = SHIELD_HORIZON_STEPS, line_m: float | None = None) -> Backups:
     """*go* and *brake* from ``ego`` (8,) with the policy's ``action`` (2,) (module docstring),
-    against every participant of ``others`` (16, 6) turning by ``kappa`` (16,) in both futures."""
+    against every participant of ``others`` (16, 6) turning by ``kappa`` (16,) in both futures and,
+    when the light holds the ego at the line, ``line_m`` ahead of its front bumper."""
     brake = np.array([0.0, -JERK_MAX])
     egos = np.empty((steps, 2, 8))
     for row, first in ((_GO, action), (_BRAKE, (action[0], -JERK_MAX))):
@@ -134,12 +145,18 @@ def backups(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.n
                              np.broadcast_to(moved.reshape(futures, steps, 1, -1), (futures, steps, 2, moved[0, 0].size))],
                             axis=-1)
     deepest = safety_constraints(states, SHIELD_CLEARANCE_M).max(axis=(0, 1, 3))  # (2,): worse future, all steps
-    return Backups(float(deepest[_GO]), float(deepest[_BRAKE]))
+    if line_m is None:
+        return Backups(float(deepest[_GO]), float(deepest[_BRAKE]))
+    past = travelled_m(np.asarray(ego, np.float64), egos) - (line_m - STOP_LINE_GAP_M)  # (2,)
+    overall = np.maximum(deepest, past)
+    return Backups(float(overall[_GO]), float(overall[_BRAKE]), float(past[_GO]), float(past[_BRAKE]))
 
 
-def shield_action(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.ndarray) -> ShieldVerdict:
-    """The command for a step whose policy action is ``action`` (module docstring)."""
-    b = backups(ego, others, kappa, action)
+def shield_action(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.ndarray,
+                  line_m: float | None = None) -> ShieldVerdict:
+    """The command for a step whose policy action is ``action`` (module docstring); ``line_m`` is
+    the front bumper's distance to the stop line [m] when the light holds the ego there, else None."""
+    b = backups(ego, others, kappa, action, line_m=line_m)
     braking = b.go_overlap_m > 0.0 and b.brake_overlap_m < b.go_overlap_m
     command = np.asarray(action, dtype=np.float64).copy()
     if braking:
