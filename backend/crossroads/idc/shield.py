@@ -22,14 +22,16 @@ is rolled out with f_ego along two backups —
 
 If *go* keeps the ego's circles ``SHIELD_CLEARANCE_M`` (the training constraints' safety margin)
 apart from every participant's in both futures of :func:`predicted_others`, u is the command: after
-it the ego can still stop clear. While the light holds the ego at the stop line (red, or yellow in
-the stop mode: :func:`crossroads.idc.lights.light_holds_at_line`), the line is a standing obstacle
-too: a backup that ends more than ``STOP_LINE_GAP_M`` short of it intrudes by the excess
-(:func:`travelled_m`), and the larger of the two intrusions counts. Without it the shipped APG,
-which tracks the stop profile loosely, crossed a red line on an empty road at 4.7 m/s; with it
-APG and DPG stand 0.50 m short (docs/measurements/red-lights.md §4). If not, and *brake* intrudes less deep, the command is braking's
+it the ego can still stop clear. If not, and *brake* intrudes less deep, the command is braking's
 first action; otherwise u stands — where both intrude as deep (standing 2.8 m from a car in a
 narrow neighbouring lane) and where braking is worse (a participant closing from the side).
+
+While the light holds the ego at the stop line (red, or yellow in the stop mode:
+:func:`crossroads.idc.lights.light_holds_at_line`), the line is a standing obstacle too: a backup
+that ends less than ``STOP_LINE_GAP_M`` short of it intrudes by the shortfall (:func:`travelled_m`),
+and the larger of the two intrusions counts. Without it the shipped APG, which tracks the stop
+profile loosely, crossed a red line on an empty road at 4.7 m/s; with it APG and DPG stand 0.50 m
+short (docs/measurements/red-lights.md §4).
 
 What was measured against it, on 60 seeds of the nominal left turn that are not the evaluation's
 (base seed 777) with run 5's APG — passed / collisions / timeouts: this rule 16 / 27 / 16; counting
