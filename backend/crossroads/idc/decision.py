@@ -19,7 +19,7 @@ import torch
 from torch import nn
 
 from crossroads.idc.controller import Decision, SpeedMode
-from crossroads.idc.lights import choose_speed_mode, light_holds_at_line
+from crossroads.idc.lights import light_holds_at_line, speed_mode_from
 from crossroads.idc.observed import observed_others
 from crossroads.idc.shield import shield_action
 from crossroads.idc.state import build_states, select_others
@@ -53,29 +53,7 @@ class IdcController:
         self._candidates = tuple(candidates)
 
     def speed_mode(self, observation: Observation) -> SpeedMode:
-        return choose_speed_mode(
-            front_vehicle_stopped_s=observation.front_vehicle_stopped_s,
-            past_stop_line=observation.past_stop_line,
-            light=observation.light.light,
-            distance_to_stop_line_m=observation.distance_to_stop_line_m,
-            speed_mps=float(observation.ego[2]),
-            yellow_remaining_s=observation.light.remaining_s,
-        )
-
-    @staticmethod
-    def holding_line_m(observation: Observation) -> float | None:
-        """The front bumper's distance to the stop line [m] when the light holds the ego there
-        (:func:`crossroads.idc.lights.light_holds_at_line`), else None: the shield's line. Why the
-        shield needs it: the trained policies follow the stop profile loosely and crossed a red line
-        on an empty road at 4.7 m/s (docs/measurements/red-lights.md)."""
-        holds = light_holds_at_line(
-            past_stop_line=observation.past_stop_line,
-            light=observation.light.light,
-            distance_to_stop_line_m=observation.distance_to_stop_line_m,
-            speed_mps=float(observation.ego[2]),
-            yellow_remaining_s=observation.light.remaining_s,
-        )
-        return observation.distance_to_stop_line_m if holds else None
+        return speed_mode_from(_light_holds(observation), observation.front_vehicle_stopped_s)
 
     def decide_states(self, states: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
         """(τ*, action (2,), values (n,)) for the states of the n candidate paths (n, 108; 120 with
@@ -88,7 +66,8 @@ class IdcController:
         return best, action.double().numpy(), values.double().numpy()
 
     def decide(self, observation: Observation) -> Decision:
-        mode = self.speed_mode(observation)
+        holds = _light_holds(observation)  # once a step: the mode and the shield's line both follow from it
+        mode = speed_mode_from(holds, observation.front_vehicle_stopped_s)
         if self.shield:  # the shield's f_other turns each participant by its route's curvature
             others, kappa = observed_others(observation)
         else:
@@ -98,5 +77,23 @@ class IdcController:
         best, action, values = self.decide_states(states)
         if kappa is None:
             return Decision(action, best, mode, values)
-        verdict = shield_action(observation.ego, others, kappa, action, line_m=self.holding_line_m(observation))
+        verdict = shield_action(observation.ego, others, kappa, action, line_m=_line_if(holds, observation))
         return Decision(verdict.action, best, mode, values, shield_braking=verdict.braking)
+
+
+def _light_holds(observation: Observation) -> bool:
+    """:func:`crossroads.idc.lights.light_holds_at_line` for an observation."""
+    return light_holds_at_line(
+        past_stop_line=observation.past_stop_line,
+        light=observation.light.light,
+        distance_to_stop_line_m=observation.distance_to_stop_line_m,
+        speed_mps=float(observation.ego[2]),
+        yellow_remaining_s=observation.light.remaining_s,
+    )
+
+
+def _line_if(holds: bool, observation: Observation) -> float | None:
+    """The shield's line: the front bumper's distance to the stop line [m] when the light ``holds``
+    the ego there, else None. Why the shield needs it: the trained policies follow the stop profile
+    loosely and crossed a red line on an empty road at 4.7 m/s (docs/measurements/red-lights.md)."""
+    return observation.distance_to_stop_line_m if holds else None

@@ -89,4 +89,10 @@ def choose_speed_mode(
     holds = light_holds_at_line(past_stop_line=past_stop_line, light=light,
                                 distance_to_stop_line_m=distance_to_stop_line_m, speed_mps=speed_mps,
                                 yellow_remaining_s=yellow_remaining_s)
-    return "stop" if holds or front_vehicle_stopped_s > CONGESTION_STOP_S else "pass"
+    return speed_mode_from(holds, front_vehicle_stopped_s)
+
+
+def speed_mode_from(holds_at_line: bool, front_vehicle_stopped_s: float) -> SpeedMode:
+    """The flowchart's mode from :func:`light_holds_at_line` and the congestion rule (step 1), for
+    callers that need both the mode and whether the light holds the ego (the safety shield's line)."""
+    return "stop" if holds_at_line or front_vehicle_stopped_s > CONGESTION_STOP_S else "pass"
