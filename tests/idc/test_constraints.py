@@ -143,3 +143,12 @@ def test_numpy_equals_torch_and_gradients() -> None:
     C.penalty(C.safety_constraints(z)).backward()
     assert torch.isfinite(z.grad).all()
     assert DT_S > 0
+
+
+def test_deepest_by_slot_is_each_participants_largest_value() -> None:
+    g = np.random.default_rng(3).normal(size=(5, C.N_SAFETY))
+    got = C.deepest_by_slot(g)
+    slots = np.array(C.SAFETY_SLOT)
+    assert got.shape == (5, 16)
+    for slot in range(16):
+        np.testing.assert_array_equal(got[:, slot], g[:, slots == slot].max(axis=1))

@@ -11,6 +11,7 @@ from crossroads.idc.shield import (
     SHIELD_CLEARANCE_M,
     backups,
     followers,
+    go_is_worse,
     predicted_others,
     shield_action,
 )
@@ -133,3 +134,43 @@ def test_too_late_to_stand_short_of_the_line_it_still_brakes_to_cross_less_far()
     verdict = shield_action(EGO, *_scene(), ACCELERATE, line_m=line)
     assert verdict.backups.brake_past_line_m > 0.0
     assert verdict.braking
+
+
+def _obstacles(go: list[float], brake: list[float]) -> np.ndarray:
+    """(2, 17) per-obstacle intrusions: the given participants first, the rest far, no line."""
+    out = np.full((2, N_OTHERS + 1), -5.0)
+    out[:, -1] = -np.inf
+    out[0, :len(go)], out[1, :len(brake)] = go, brake
+    return out
+
+
+def test_it_compares_the_backups_obstacle_by_obstacle() -> None:
+    assert not go_is_worse(_obstacles([-0.2], [-0.3]))  # go is clear
+    assert not go_is_worse(_obstacles([0.9], [0.9]))  # braking helps no one: the policy's action
+    # a neighbour 0.9 m deep in both hides nothing: the car ahead gets 0.1 m deeper along go
+    assert go_is_worse(_obstacles([0.9, 0.5], [0.9, 0.4]))
+    # each backup worse for someone: the shallower deepest intrusion decides
+    assert not go_is_worse(_obstacles([0.5, 0.2], [0.4, 0.8]))
+    assert go_is_worse(_obstacles([0.9, 0.2], [0.4, 0.5]))
+    # short of the stop line standing is safe from everyone but followers (predicted braking)
+    assert go_is_worse(_obstacles([0.5, 0.2], [0.4, 0.8]), before_line=True)
+    assert not go_is_worse(_obstacles([0.9], [0.9]), before_line=True)
+
+
+def test_a_held_line_is_not_traded_against_a_participant() -> None:
+    trade = _obstacles([2.09], [2.14])  # a turner predicted a little deeper if the ego stands
+    trade[:, -1] = [0.03, 0.02]  # go ends 1 cm further past the held line's gap
+    assert go_is_worse(trade)
+    trade[:, -1] = [0.02, 0.02]
+    assert not go_is_worse(trade)
+
+
+def test_a_neighbour_inside_the_clearance_does_not_hide_the_car_ahead() -> None:
+    standing = EGO.copy()
+    standing[2] = 0.0
+    gap = 0.5 * (4.8 + CAR_L) + 0.6  # bumpers 0.6 m apart
+    scene = _scene((0.0, 2.0, 0.0, 0.0), (gap, 0.0, 0.0, 0.0))  # alongside, 0.1 m between the bodies
+    b = backups(standing, *scene, ACCELERATE)
+    assert b.by_obstacle[0, 0] > b.by_obstacle[0, 1] > 0.0  # the neighbour intrudes deepest, in both
+    assert b.go_overlap_m == pytest.approx(b.brake_overlap_m, abs=1e-3)  # by the deepest alone: a tie
+    assert shield_action(standing, *scene, ACCELERATE).braking

@@ -29,6 +29,8 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from crossroads.arrays import ops
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M
 from crossroads.idc.state import (
@@ -101,6 +103,17 @@ def safety_constraints(state: Any, safety_margin_m: float = SAFETY_MARGIN_M) -> 
         return g.reshape(tuple(g.shape[:-3]) + (-1,))
 
     return xp.concat([gap(two_x, two_y, r2[..., :n2, None]), gap(one_x, one_y, r1[..., n2:, None])], axis=-1)
+
+
+# The participant slot each of the N_SAFETY values belongs to (the order of safety_constraints)
+SAFETY_SLOT = tuple(slot for slot, k in enumerate(KIND_OF_SLOT) for _ in range(2 * (2 if k != "pedestrian" else 1)))
+_SLOT_STARTS = np.array([SAFETY_SLOT.index(slot) for slot in range(len(KIND_OF_SLOT))])
+
+
+def deepest_by_slot(g: np.ndarray) -> np.ndarray:
+    """g[..., 56] of :func:`safety_constraints` (numpy) → [..., 16]: each participant slot's largest
+    value, so one participant's intrusion is not hidden behind another's."""
+    return np.maximum.reduceat(np.asarray(g), _SLOT_STARTS, axis=-1)
 
 
 def road_constraints(

@@ -77,7 +77,8 @@ class IdcController:
         best, action, values = self.decide_states(states)
         if kappa is None:
             return Decision(action, best, mode, values)
-        verdict = shield_action(observation.ego, others, kappa, action, line_m=_line_if(holds, observation))
+        verdict = shield_action(observation.ego, others, kappa, action, line_m=_line_if(holds, observation),
+                                before_line=not observation.past_stop_line)
         return Decision(verdict.action, best, mode, values, shield_braking=verdict.braking)
 
 

@@ -22,9 +22,12 @@ is rolled out with f_ego along two backups —
 
 If *go* keeps the ego's circles ``SHIELD_CLEARANCE_M`` (the training constraints' safety margin)
 apart from every participant's in both futures of :func:`predicted_others`, u is the command: after
-it the ego can still stop clear. If not, and *brake* intrudes less deep, the command is braking's
-first action; otherwise u stands — where both intrude as deep (standing 2.8 m from a car in a
-narrow neighbouring lane) and where braking is worse (a participant closing from the side).
+it the ego can still stop clear. If not, the backups are compared participant by participant
+(:func:`go_is_worse`): where *go* intrudes deeper on someone and *brake* on no one, the command is
+braking's first action; where braking helps no one, u stands (standing 2.8 m from a car in a narrow
+neighbouring lane, both intrude as deep); where each is worse for someone (a participant closing
+from the side), the shallower deepest intrusion decides — except at a held stop line and short of
+the stop line, where braking wins.
 
 While the light holds the ego at the stop line (red, or yellow in the stop mode:
 :func:`crossroads.idc.lights.light_holds_at_line`), the line is a standing obstacle too: a backup
@@ -57,7 +60,7 @@ from typing import NamedTuple
 import numpy as np
 
 from crossroads.constants import DT_S, JERK_MAX, OTHER_DECEL_MPS2, STOP_LINE_GAP_M, TRACK_STATE_DIM
-from crossroads.idc.constraints import SAFETY_MARGIN_M, safety_constraints
+from crossroads.idc.constraints import SAFETY_MARGIN_M, deepest_by_slot, safety_constraints
 from crossroads.idc.state import KIND_ROWS, N_OTHERS, O_L, O_PHI, O_PX, O_PY, O_V, PHI, PX, PY
 from crossroads.sim.ego import ego_step
 
@@ -69,6 +72,7 @@ SHIELD_HORIZON_STEPS = 40  # [0.1 s] full braking stops from 8.33 m/s within ~36
 FOLLOWER_HEADING_RAD = np.pi / 4  # [rad] a participant behind heading within this of the ego follows it
 PEDESTRIAN_SLOTS = np.arange(N_OTHERS) >= KIND_ROWS["pedestrian"].start
 _GO, _BRAKE = 0, 1  # the rows of the backups
+_LINE = -1  # the stop line's column in Backups.by_obstacle, after the participant slots
 
 
 @dataclass(frozen=True)
@@ -123,6 +127,43 @@ class Backups(NamedTuple):
     brake_overlap_m: float  # the same along *brake*
     go_past_line_m: float = -np.inf  # how far *go* ends past the point STOP_LINE_GAP_M short of the line
     brake_past_line_m: float = -np.inf  # the same along *brake* (−inf: no line holds the ego)
+    # (2, 17) the deepest intrusion per obstacle, [0] along *go*, [1] along *brake*: the 16
+    # participant slots, then the line (−inf when none holds the ego)
+    by_obstacle: np.ndarray | None = None
+
+
+# [m] an obstacle counts as intruded deeper along one backup than the other only past this: below
+# it the two differ by rounding (one step of go from a stand moves the ego ~1 mm)
+SHIELD_TIE_M = 1e-4
+
+
+def go_is_worse(by_obstacle: np.ndarray, tie_m: float = SHIELD_TIE_M, before_line: bool = False) -> bool:
+    """Whether the shield brakes, from the per-obstacle intrusions ``by_obstacle`` (2, n) of
+    :class:`Backups`: *go* intrudes somewhere (> 0) deeper than *brake*, and *brake* nowhere deeper
+    than *go*; where each is worse somewhere, the shallower deepest intrusion wins (module docstring).
+
+    Per obstacle, not the deepest of all: compared by the deepest intrusion alone, another
+    participant equally deep along both backups hid the queued car ahead, which the ego crept into
+    from a stand at 0.3 m/s (150 s nominal left, seed 2124181941, docs/measurements/safety-shield.md).
+
+    Two exceptions, where braking wins whatever the participants' intrusions say:
+
+    * a held stop line that *go* ends deeper past. Traded against a right-turner predicted 2.1 m
+      deep in both backups, it let the shipped APG run a red line (seed 393922021);
+    * ``before_line``, the ego not yet past its stop line: standing short of it, the ego is in no
+      one's way but its followers' (predicted braking), so a participant predicted deeper along
+      *brake* there is the prediction's artefact (a turner kept on its curvature).
+    """
+    go, brake = by_obstacle[_GO], by_obstacle[_BRAKE]
+    if go[_LINE] > 0.0 and go[_LINE] > brake[_LINE] + tie_m:
+        return True  # a held stop line is not traded against anyone: escaping forward means running the red
+    go_deeper = bool(np.any((go > 0.0) & (go > brake + tie_m)))
+    if not go_deeper:
+        return False  # go is clear, or braking helps nobody
+    if before_line:
+        return True  # short of the stop line no one crossing the junction can reach a standing ego
+    brake_deeper = bool(np.any((brake > 0.0) & (brake > go + tie_m)))
+    return not brake_deeper or float(brake.max()) < float(go.max())
 
 
 def travelled_m(start: np.ndarray, egos: np.ndarray) -> np.ndarray:
@@ -144,27 +185,33 @@ def backups(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.n
         for i in range(steps):
             egos[i, row] = state
             state = ego_step(state, brake)
-    moved = predicted_others(np.asarray(others, np.float64), np.asarray(kappa, np.float64), steps)
+    by_slot = _deepest_by_slot(ego, egos, np.asarray(others, np.float64), np.asarray(kappa, np.float64), steps)
+    past = (np.full(2, -np.inf) if line_m is None
+            else travelled_m(np.asarray(ego, np.float64), egos) - (line_m - STOP_LINE_GAP_M))  # (2,)
+    by_obstacle = np.concatenate([by_slot, past[:, None]], axis=1)
+    overall = by_obstacle.max(axis=1)
+    return Backups(float(overall[_GO]), float(overall[_BRAKE]), float(past[_GO]), float(past[_BRAKE]), by_obstacle)
+
+
+def _deepest_by_slot(ego: np.ndarray, egos: np.ndarray, others: np.ndarray, kappa: np.ndarray, steps: int) -> np.ndarray:
+    """(2, 16): each slot's deepest intrusion along each backup ``egos`` (steps, 2, 8), the worse of
+    the futures of :func:`predicted_others` at every step."""
+    moved = predicted_others(others, kappa, steps)
     follows = followers(ego, others)
     moved[0][:, follows] = moved[1][:, follows]  # a follower brakes when the ego does
     futures = len(moved)
     states = np.concatenate([np.broadcast_to(egos, (futures, steps, 2, 8)), np.zeros((futures, steps, 2, TRACK_STATE_DIM)),
                              np.broadcast_to(moved.reshape(futures, steps, 1, -1), (futures, steps, 2, moved[0, 0].size))],
                             axis=-1)
-    deepest = safety_constraints(states, SHIELD_CLEARANCE_M).max(axis=(0, 1, 3))  # (2,): worse future, all steps
-    if line_m is None:
-        return Backups(float(deepest[_GO]), float(deepest[_BRAKE]))
-    past = travelled_m(np.asarray(ego, np.float64), egos) - (line_m - STOP_LINE_GAP_M)  # (2,)
-    overall = np.maximum(deepest, past)
-    return Backups(float(overall[_GO]), float(overall[_BRAKE]), float(past[_GO]), float(past[_BRAKE]))
+    return deepest_by_slot(safety_constraints(states, SHIELD_CLEARANCE_M)).max(axis=(0, 1))
 
 
 def shield_action(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.ndarray,
-                  line_m: float | None = None) -> ShieldVerdict:
+                  line_m: float | None = None, before_line: bool = False) -> ShieldVerdict:
     """The command for a step whose policy action is ``action`` (module docstring); ``line_m`` is
     the front bumper's distance to the stop line [m] when the light holds the ego there, else None."""
     b = backups(ego, others, kappa, action, line_m=line_m)
-    braking = b.go_overlap_m > 0.0 and b.brake_overlap_m < b.go_overlap_m
+    braking = go_is_worse(b.by_obstacle, before_line=before_line)
     command = np.asarray(action, dtype=np.float64).copy()
     if braking:
         command[1] = -JERK_MAX
