@@ -9,6 +9,7 @@ from crossroads.constants import JERK_MAX, OTHER_DECEL_MPS2, STOP_LINE_GAP_M
 from crossroads.idc.constraints import EGO_CIRCLE_OFFSET_M, EGO_RADIUS_M
 from crossroads.idc.shield import (
     SHIELD_CLEARANCE_M,
+    SHIELD_RELEASE_MARGIN_M,
     backups,
     followers,
     go_is_worse,
@@ -174,3 +175,17 @@ def test_a_neighbour_inside_the_clearance_does_not_hide_the_car_ahead() -> None:
     assert b.by_obstacle[0, 0] > b.by_obstacle[0, 1] > 0.0  # the neighbour intrudes deepest, in both
     assert b.go_overlap_m == pytest.approx(b.brake_overlap_m, abs=1e-3)  # by the deepest alone: a tie
     assert shield_action(standing, *scene, ACCELERATE).braking
+
+
+def test_after_braking_go_must_clear_by_the_release_margin() -> None:
+    nearly = _obstacles([-0.2], [-0.25])  # go keeps the clearance by 0.2 m only
+    assert not go_is_worse(nearly)
+    assert go_is_worse(nearly, release_m=SHIELD_RELEASE_MARGIN_M)
+    assert not go_is_worse(_obstacles([-0.4], [-0.45]), release_m=SHIELD_RELEASE_MARGIN_M)
+    standing = EGO.copy()
+    standing[2] = 0.0
+    # the car ahead 0.1 m beyond the clearance of a standing ego (bumpers 1.1 m apart): one step of
+    # Δa = +4.5 m/s³ then braking keeps clear by ~0.1 m, inside the release margin
+    scene = _scene((0.5 * (4.8 + CAR_L) + SHIELD_CLEARANCE_M + 0.1, 0.0, 0.0, 0.0))
+    assert not shield_action(standing, *scene, ACCELERATE).braking
+    assert shield_action(standing, *scene, ACCELERATE, braked_last_step=True).braking

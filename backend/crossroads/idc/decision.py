@@ -38,6 +38,7 @@ class IdcController:
         self._dtype = next(value.parameters()).dtype
         self._candidates: tuple[CandidatePath, ...] = ()
         self.shield = shield
+        self._shield_braked = False  # the shield's verdict last step: it releases with a margin (idc.shield)
         # networks built with the path preview read 120-value states (crossroads.idc.state)
         self.preview = bool(getattr(policy, "preview", False))
 
@@ -51,6 +52,7 @@ class IdcController:
 
     def reset(self, candidates: Sequence[CandidatePath]) -> None:
         self._candidates = tuple(candidates)
+        self._shield_braked = False
 
     def speed_mode(self, observation: Observation) -> SpeedMode:
         return speed_mode_from(_light_holds(observation), observation.front_vehicle_stopped_s)
@@ -78,7 +80,8 @@ class IdcController:
         if kappa is None:
             return Decision(action, best, mode, values)
         verdict = shield_action(observation.ego, others, kappa, action, line_m=_line_if(holds, observation),
-                                before_line=not observation.past_stop_line)
+                                before_line=not observation.past_stop_line, braked_last_step=self._shield_braked)
+        self._shield_braked = verdict.braking
         return Decision(verdict.action, best, mode, values, shield_braking=verdict.braking)
 
 

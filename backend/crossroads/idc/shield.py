@@ -135,9 +135,15 @@ class Backups(NamedTuple):
 # [m] an obstacle counts as intruded deeper along one backup than the other only past this: below
 # it the two differ by rounding (one step of go from a stand moves the ego ~1 mm)
 SHIELD_TIE_M = 1e-4
+# [m] once the shield has braked, *go* must keep this much more than the clearance before the policy
+# gets its action back. Why: perceived positions jitter (σ 0.15 m); standing 0.2–0.4 m inside the
+# clearance of a standing car, the car's noise let *go* look clear on single steps, two such steps
+# in a row built up Δa, and the ego crept into the car at 0.13 m/s (60 s nominal left, seed 1596428704).
+SHIELD_RELEASE_MARGIN_M = 0.3
 
 
-def go_is_worse(by_obstacle: np.ndarray, tie_m: float = SHIELD_TIE_M, before_line: bool = False) -> bool:
+def go_is_worse(by_obstacle: np.ndarray, tie_m: float = SHIELD_TIE_M, before_line: bool = False,
+                release_m: float = 0.0) -> bool:
     """Whether the shield brakes, from the per-obstacle intrusions ``by_obstacle`` (2, n) of
     :class:`Backups`: *go* intrudes somewhere (> 0) deeper than *brake*, and *brake* nowhere deeper
     than *go*; where each is worse somewhere, the shallower deepest intrusion wins (module docstring).
@@ -153,11 +159,14 @@ def go_is_worse(by_obstacle: np.ndarray, tie_m: float = SHIELD_TIE_M, before_lin
     * ``before_line``, the ego not yet past its stop line: standing short of it, the ego is in no
       one's way but its followers' (predicted braking), so a participant predicted deeper along
       *brake* there is the prediction's artefact (a turner kept on its curvature).
+
+    ``release_m``: an obstacle counts as intruded along *go* from −release_m on (the hysteresis of
+    ``SHIELD_RELEASE_MARGIN_M`` after a braking step).
     """
     go, brake = by_obstacle[_GO], by_obstacle[_BRAKE]
     if go[_LINE] > 0.0 and go[_LINE] > brake[_LINE] + tie_m:
         return True  # a held stop line is not traded against anyone: escaping forward means running the red
-    go_deeper = bool(np.any((go > 0.0) & (go > brake + tie_m)))
+    go_deeper = bool(np.any((go > -release_m) & (go > brake + tie_m)))
     if not go_deeper:
         return False  # go is clear, or braking helps nobody
     if before_line:
@@ -207,11 +216,13 @@ def _deepest_by_slot(ego: np.ndarray, egos: np.ndarray, others: np.ndarray, kapp
 
 
 def shield_action(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.ndarray,
-                  line_m: float | None = None, before_line: bool = False) -> ShieldVerdict:
+                  line_m: float | None = None, before_line: bool = False,
+                  braked_last_step: bool = False) -> ShieldVerdict:
     """The command for a step whose policy action is ``action`` (module docstring); ``line_m`` is
     the front bumper's distance to the stop line [m] when the light holds the ego there, else None."""
     b = backups(ego, others, kappa, action, line_m=line_m)
-    braking = go_is_worse(b.by_obstacle, before_line=before_line)
+    braking = go_is_worse(b.by_obstacle, before_line=before_line,
+                          release_m=SHIELD_RELEASE_MARGIN_M if braked_last_step else 0.0)
     command = np.asarray(action, dtype=np.float64).copy()
     if braking:
         command[1] = -JERK_MAX
