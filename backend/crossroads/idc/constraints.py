@@ -64,7 +64,10 @@ _EPS = 1e-12  # inside the square roots, so distances and radii are differentiab
 TWO_CIRCLE_SLOTS = tuple(i for i, k in enumerate(KIND_OF_SLOT) if k != "pedestrian")
 ONE_CIRCLE_SLOTS = tuple(i for i, k in enumerate(KIND_OF_SLOT) if k == "pedestrian")
 assert TWO_CIRCLE_SLOTS == tuple(range(len(TWO_CIRCLE_SLOTS))), "two-circle kinds come first"
-N_SAFETY = sum(2 * (2 if k != "pedestrian" else 1) for k in KIND_OF_SLOT)  # 56
+# The participant slot each value of safety_constraints belongs to (its order: slot by slot, each
+# slot's circles × the ego's 2 circles)
+SAFETY_SLOT = tuple(slot for slot, k in enumerate(KIND_OF_SLOT) for _ in range(2 * (2 if k != "pedestrian" else 1)))
+N_SAFETY = len(SAFETY_SLOT)  # 56
 N_ROAD = 4
 
 
@@ -105,8 +108,6 @@ def safety_constraints(state: Any, safety_margin_m: float = SAFETY_MARGIN_M) -> 
     return xp.concat([gap(two_x, two_y, r2[..., :n2, None]), gap(one_x, one_y, r1[..., n2:, None])], axis=-1)
 
 
-# The participant slot each of the N_SAFETY values belongs to (the order of safety_constraints)
-SAFETY_SLOT = tuple(slot for slot, k in enumerate(KIND_OF_SLOT) for _ in range(2 * (2 if k != "pedestrian" else 1)))
 _SLOT_STARTS = np.array([SAFETY_SLOT.index(slot) for slot in range(len(KIND_OF_SLOT))])
 
 

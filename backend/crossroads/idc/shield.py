@@ -121,22 +121,38 @@ def followers(ego: np.ndarray, others: np.ndarray) -> np.ndarray:
 
 class Backups(NamedTuple):
     """How the two backups fare against the predicted participants and the stop line (module
-    docstring); an overlap > 0 says the backup enters the clearance, or passes the line's gap."""
+    docstring); an intrusion > 0 says the backup enters the clearance, or passes the line's gap."""
 
-    go_overlap_m: float  # deepest intrusion along *go* [m]: the larger of the two below
-    brake_overlap_m: float  # the same along *brake*
-    go_past_line_m: float = -np.inf  # how far *go* ends past the point STOP_LINE_GAP_M short of the line
-    brake_past_line_m: float = -np.inf  # the same along *brake* (−inf: no line holds the ego)
-    # (2, 17) the deepest intrusion per obstacle, [0] along *go*, [1] along *brake*: the 16
-    # participant slots, then the line (−inf when none holds the ego)
-    by_obstacle: np.ndarray | None = None
+    # (2, 17) the deepest intrusion per obstacle [m], [0] along *go*, [1] along *brake*: the 16
+    # participant slots, then the line (−inf when no line holds the ego)
+    by_obstacle: np.ndarray
+
+    @property
+    def go_overlap_m(self) -> float:
+        """Deepest intrusion along *go* [m], over every obstacle."""
+        return float(self.by_obstacle[_GO].max())
+
+    @property
+    def brake_overlap_m(self) -> float:
+        """The same along *brake*."""
+        return float(self.by_obstacle[_BRAKE].max())
+
+    @property
+    def go_past_line_m(self) -> float:
+        """How far *go* ends past the point STOP_LINE_GAP_M short of the line (−inf: no line)."""
+        return float(self.by_obstacle[_GO, _LINE])
+
+    @property
+    def brake_past_line_m(self) -> float:
+        """The same along *brake*."""
+        return float(self.by_obstacle[_BRAKE, _LINE])
 
 
 # [m] an obstacle counts as intruded deeper along one backup than the other only past this: below
 # it the two differ by rounding (one step of go from a stand moves the ego ~1 mm)
 SHIELD_TIE_M = 1e-4
 # [m] once the shield has braked, *go* must keep this much more than the clearance before the policy
-# gets its action back. Why: perceived positions jitter (σ 0.15 m); standing 0.2–0.4 m inside the
+# gets its action back. Why: perceived positions jitter (σ 0.15 m); standing up to 0.47 m inside the
 # clearance of a standing car, the car's noise let *go* look clear on single steps, two such steps
 # in a row built up Δa, and the ego crept into the car at 0.13 m/s (60 s nominal left, seed 1596428704).
 SHIELD_RELEASE_MARGIN_M = 0.3
@@ -197,9 +213,7 @@ def backups(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.n
     by_slot = _deepest_by_slot(ego, egos, np.asarray(others, np.float64), np.asarray(kappa, np.float64), steps)
     past = (np.full(2, -np.inf) if line_m is None
             else travelled_m(np.asarray(ego, np.float64), egos) - (line_m - STOP_LINE_GAP_M))  # (2,)
-    by_obstacle = np.concatenate([by_slot, past[:, None]], axis=1)
-    overall = by_obstacle.max(axis=1)
-    return Backups(float(overall[_GO]), float(overall[_BRAKE]), float(past[_GO]), float(past[_BRAKE]), by_obstacle)
+    return Backups(np.concatenate([by_slot, past[:, None]], axis=1))
 
 
 def _deepest_by_slot(ego: np.ndarray, egos: np.ndarray, others: np.ndarray, kappa: np.ndarray, steps: int) -> np.ndarray:
