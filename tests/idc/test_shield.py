@@ -10,6 +10,7 @@ from crossroads.idc.constraints import EGO_CIRCLE_OFFSET_M, EGO_RADIUS_M
 from crossroads.idc.shield import (
     SHIELD_CLEARANCE_M,
     SHIELD_RELEASE_MARGIN_M,
+    HOLD_WHEEL,
     backups,
     followers,
     go_is_worse,
@@ -70,7 +71,7 @@ def test_it_brakes_when_only_braking_now_keeps_clear_and_not_otherwise() -> None
     verdict = shield_action(EGO, *tight, ACCELERATE)
     assert verdict.backups.go_overlap_m > 0.0 >= verdict.backups.brake_overlap_m
     assert verdict.backups.brake_overlap_m <= 0.0
-    assert verdict.braking and verdict.action[1] == -JERK_MAX and verdict.action[0] == ACCELERATE[0]
+    assert verdict.braking and np.array_equal(verdict.action, HOLD_WHEEL)
     far = shield_action(EGO, *_scene((60.0, 0.0, 0.0, 0.0)), ACCELERATE)
     assert not far.braking and np.array_equal(far.action, ACCELERATE)
 
@@ -189,3 +190,22 @@ def test_after_braking_go_must_clear_by_the_release_margin() -> None:
     scene = _scene((0.5 * (4.8 + CAR_L) + SHIELD_CLEARANCE_M + 0.1, 0.0, 0.0, 0.0))
     assert not shield_action(standing, *scene, ACCELERATE).braking
     assert shield_action(standing, *scene, ACCELERATE, braked_last_step=True).braking
+
+
+def test_braking_holds_the_wheel_it_was_checked_with() -> None:
+    """The backups hold the wheel after their first step, so a braking step must too: a policy that
+    steers back towards a car the held wheel would have passed (the nominal left turn's queue,
+    session 21) is not followed while the shield brakes."""
+    swerving = EGO.copy()
+    swerving[6] = 0.1  # the wheel turned left
+    steer_right_and_go = np.array([-0.4, JERK_MAX])
+    stop_now = float(braking_distance_m(8.0, 0.0))
+    scene = _scene((stop_now + 3.0, 0.0, 0.0, 0.0))  # too close for go, not for brake
+    verdict = shield_action(swerving, *scene, steer_right_and_go)
+    assert verdict.braking
+    assert np.array_equal(verdict.action, HOLD_WHEEL)  # not the policy's −0.4 rad/s
+    assert HOLD_WHEEL[0] == 0.0 and HOLD_WHEEL[1] == -JERK_MAX
+    # *brake* is what the command drives: its first step is HOLD_WHEEL's, so the next step's *go*
+    # (that command, then braking) retraces it
+    again = backups(swerving, *scene, HOLD_WHEEL)
+    np.testing.assert_allclose(again.by_obstacle[0], again.by_obstacle[1])

@@ -18,7 +18,10 @@ stand (a follower — behind the ego, heading its way — brakes in both, :func:
 is rolled out with f_ego along two backups —
 
 * *go*: u now, then full braking (Δa = −4.5 m/s³ each step, the wheel held);
-* *brake*: full braking from now (u's steering rate for this step, then the wheel held).
+* *brake*: full braking from now, the wheel held (Δδ = 0).
+
+When the shield brakes, its command is *brake*'s first action, the wheel included (``HOLD_WHEEL``):
+what it drives is then the backup it checked, and what the last step's *go* checked after u.
 
 If *go* keeps the ego's circles ``SHIELD_CLEARANCE_M`` (the training constraints' safety margin)
 apart from every participant's in both futures of :func:`predicted_others`, u is the command: after
@@ -148,6 +151,14 @@ class Backups(NamedTuple):
         return float(self.by_obstacle[_BRAKE, _LINE])
 
 
+# [Δδ rad/s, Δa m/s³] what the shield commands when it brakes, and *brake*'s every step: full braking,
+# the wheel held. Why held: the backups are checked with the wheel held after their first step, but
+# until session 21 a braking step kept the policy's steering rate. On the nominal left turn the
+# trained policy swerves left around a queued car; *go*, curving left on the held wheel, cleared the
+# car, the ego braked while the policy steered back right, and its front corner hit the car it had
+# been predicted to pass (27 of the 57 collisions of 200 runs, 150 s timeout, all 5 m behind a
+# standing car, 1-2 m to its left; seeds 352480436, 1284190969, docs/measurements/safety-shield.md)
+HOLD_WHEEL = np.array([0.0, -JERK_MAX])
 # [m] an obstacle counts as intruded deeper along one backup than the other only past this: below
 # it the two differ by rounding (one step of go from a stand moves the ego ~1 mm)
 SHIELD_TIE_M = 1e-4
@@ -203,13 +214,12 @@ def backups(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.n
     """*go* and *brake* from ``ego`` (8,) with the policy's ``action`` (2,) (module docstring),
     against every participant of ``others`` (16, 6) turning by ``kappa`` (16,) in both futures and,
     when the light holds the ego at the line, ``line_m`` ahead of its front bumper."""
-    brake = np.array([0.0, -JERK_MAX])
     egos = np.empty((steps, 2, 8))
-    for row, first in ((_GO, action), (_BRAKE, (action[0], -JERK_MAX))):
+    for row, first in ((_GO, action), (_BRAKE, HOLD_WHEEL)):
         state = ego_step(np.asarray(ego, np.float64), np.asarray(first, np.float64))  # (8,): f_ego on floats
         for i in range(steps):
             egos[i, row] = state
-            state = ego_step(state, brake)
+            state = ego_step(state, HOLD_WHEEL)
     by_slot = _deepest_by_slot(ego, egos, np.asarray(others, np.float64), np.asarray(kappa, np.float64), steps)
     past = (np.full(2, -np.inf) if line_m is None
             else travelled_m(np.asarray(ego, np.float64), egos) - (line_m - STOP_LINE_GAP_M))  # (2,)
@@ -237,7 +247,5 @@ def shield_action(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action
     b = backups(ego, others, kappa, action, line_m=line_m)
     braking = go_is_worse(b.by_obstacle, before_line=before_line,
                           release_m=SHIELD_RELEASE_MARGIN_M if braked_last_step else 0.0)
-    command = np.asarray(action, dtype=np.float64).copy()
-    if braking:
-        command[1] = -JERK_MAX
+    command = HOLD_WHEEL.copy() if braking else np.asarray(action, dtype=np.float64).copy()
     return ShieldVerdict(command, braking, b)
