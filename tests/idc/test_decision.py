@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
 
-from crossroads.constants import JERK_MAX, STEER_RATE_MAX, STOP_LINE_GAP_M
+from crossroads.constants import EGO_LENGTH_M, JERK_MAX, STEER_RATE_MAX, STOP_LINE_GAP_M
+from crossroads.idc.crosswalks import crossing_spans
 from crossroads.idc.decision import IdcController
 from crossroads.idc.shield import HOLD_WHEEL
 from crossroads.idc.state import build_states, select_others
@@ -14,7 +17,7 @@ from crossroads.network import catalogue
 from crossroads.rl.networks import make_networks
 from crossroads.sim.config import SignalStart, WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC
-from crossroads.sim.world import World
+from crossroads.sim.world import Perceived, World
 from support import REPO_ROOT
 
 
@@ -89,3 +92,26 @@ def test_with_the_shield_a_shipped_model_stands_short_of_a_red_line(model: str) 
             assert outcome is None or outcome.kind != "red_light", outcome
     assert len(gaps_standing_on_red) > 100  # it waited for the green (the ego's red lasts 40 s here)
     assert STOP_LINE_GAP_M - 0.05 < min(gaps_standing_on_red) and max(gaps_standing_on_red) < STOP_LINE_GAP_M + 0.3
+
+
+def test_the_shields_line_is_a_crossing_a_pedestrian_claims_ahead() -> None:
+    """The shield holds the ego short of a crossing a pedestrian claims (idc.crosswalks): the line it
+    gets is the front bumper's distance to the exit crossing while someone stands on it in the ego's
+    path, and none when nobody does or when the light's line is nearer."""
+    controller = IdcController.from_checkpoint(REPO_ROOT / "models" / "apg.pt", shield=True)
+    config = WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", demand=NO_TRAFFIC, warmup_s=1.0)
+    with World(config) as world:
+        obs = world.reset(0)
+        controller.reset(world.candidates)
+        path = world.candidates[0]
+        entry, exit_ = crossing_spans(path.points, path.s, obs.crossings)
+        on_exit = exit_.centre.interpolate(0.5, normalized=True)
+        pedestrian = np.array([[on_exit.x, on_exit.y, 0.0, 0.0, 0.3, 0.5]])
+        seen = Perceived(np.array([0]), np.array(["pedestrian"]), pedestrian)
+        front_s = path.project(float(obs.ego[0]), float(obs.ego[1])).s_m + EGO_LENGTH_M / 2.0
+        claimed_obs = dataclasses.replace(obs, perceived=seen)
+        assert controller._shield_line(False, claimed_obs, 0) == pytest.approx(exit_.s_in_m - front_s)
+        assert controller._shield_line(False, obs, 0) is None  # nobody on it
+        # a held stop line nearer than the crossing wins
+        assert controller._shield_line(True, claimed_obs, 0) == pytest.approx(obs.distance_to_stop_line_m)
+        assert entry.s_in_m < exit_.s_in_m

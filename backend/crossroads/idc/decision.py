@@ -18,12 +18,15 @@ import numpy as np
 import torch
 from torch import nn
 
+from crossroads.constants import EGO_LENGTH_M
 from crossroads.idc.controller import Decision, SpeedMode
+from crossroads.idc.crosswalks import CrossingSpan, crossing_spans, crosswalk_line_m
 from crossroads.idc.lights import light_holds_at_line, speed_mode_from
 from crossroads.idc.observed import observed_others
 from crossroads.idc.shield import shield_action
 from crossroads.idc.state import build_states, select_others
 from crossroads.planning import CandidatePath
+from crossroads.sim.ego import braking_distance_m
 from crossroads.sim.world import Observation
 
 
@@ -39,6 +42,7 @@ class IdcController:
         self._candidates: tuple[CandidatePath, ...] = ()
         self.shield = shield
         self._shield_braked = False  # the shield's verdict last step: it releases with a margin (idc.shield)
+        self._spans: dict[int, tuple[CrossingSpan, ...]] = {}  # per candidate: its crossings (idc.crosswalks)
         # networks built with the path preview read 120-value states (crossroads.idc.state)
         self.preview = bool(getattr(policy, "preview", False))
 
@@ -53,6 +57,7 @@ class IdcController:
     def reset(self, candidates: Sequence[CandidatePath]) -> None:
         self._candidates = tuple(candidates)
         self._shield_braked = False
+        self._spans = {}
 
     def speed_mode(self, observation: Observation) -> SpeedMode:
         return speed_mode_from(_light_holds(observation), observation.front_vehicle_stopped_s)
@@ -79,10 +84,33 @@ class IdcController:
         best, action, values = self.decide_states(states)
         if kappa is None:
             return Decision(action, best, mode, values)
-        verdict = shield_action(observation.ego, others, kappa, action, line_m=_line_if(holds, observation),
+        verdict = shield_action(observation.ego, others, kappa, action, line_m=self._shield_line(holds, observation, best),
                                 before_line=not observation.past_stop_line, braked_last_step=self._shield_braked)
         self._shield_braked = verdict.braking
         return Decision(verdict.action, best, mode, values, shield_braking=verdict.braking)
+
+
+    def _shield_line(self, holds: bool, observation: Observation, path_index: int) -> float | None:
+        """The line the shield holds the ego short of: the nearer of the stop line while the light
+        holds the ego (:func:`_line_if`) and a crossing a pedestrian claims on path ``path_index``
+        (:func:`crossroads.idc.crosswalks.crosswalk_line_m`), as the front bumper's distance [m]."""
+        line = _line_if(holds, observation)
+        if not observation.crossings:
+            return line
+        path = self._candidates[path_index]
+        if path_index not in self._spans:
+            self._spans[path_index] = crossing_spans(path.points, path.s, observation.crossings)
+        seen = observation.perceived
+        pedestrians = seen.observations[seen.kinds == "pedestrian"]
+        if not self._spans[path_index] or len(pedestrians) == 0:
+            return line
+        ego = observation.ego
+        front_s = path.project(float(ego[0]), float(ego[1])).s_m + EGO_LENGTH_M / 2.0
+        crosswalk = crosswalk_line_m(self._spans[path_index], front_s, pedestrians,
+                                     float(braking_distance_m(max(float(ego[2]), 0.0), float(ego[7]))))
+        if crosswalk is None:
+            return line
+        return crosswalk if line is None else min(line, crosswalk)
 
 
 def _light_holds(observation: Observation) -> bool:

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Literal, NamedTuple
 
 import numpy as np
+from shapely.geometry import Polygon
 from shapely.ops import unary_union
 
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, SIM_STEP_S
@@ -92,6 +93,9 @@ class Observation:
     # knowledge, as the candidates are, from which a controller can tell a participant's turning
     # radius (:func:`participant_curvatures`)
     lane_shapes: Mapping[str, FloatArray] = field(default_factory=dict)
+    # the junction's pedestrian crossings (their areas): static map knowledge too, from which the
+    # safety shield tells where the ego's path runs over one (crossroads.idc.crosswalks)
+    crossings: tuple[Polygon, ...] = ()
 
     @property
     def past_stop_line(self) -> bool:
@@ -155,6 +159,7 @@ class World:
         self._target_exit = Region(unary_union([
             lane.polygon() for lane in self.junction.lanes.values() if lane.edge_id in exit_edges]))
         self._inside = Region(self.junction.polygon)
+        self._crossing_areas = tuple(c.polygon for c in self.junction.crossings)  # Observation.crossings
         # lane centre lines by SUMO lane id, internal lanes through the junction included: the
         # turning radius R of f_other comes from the lane a participant is on and where on it
         self.lane_shapes: dict[str, FloatArray] = {
@@ -346,6 +351,7 @@ class World:
             perceived=self._perceive(snap, around),
             candidates=self.candidates,
             lane_shapes=self.lane_shapes,
+            crossings=self._crossing_areas,
         )
 
     def _collision(self, snap: Snapshot, around: _Around) -> int | None:

@@ -1,0 +1,97 @@
+"""Pedestrian crossings on the ego's path: where they lie along it, and when a pedestrian claims one.
+
+**(choice)** Not in the paper; used by the safety shield (:mod:`crossroads.idc.shield`). SUMO's
+pedestrians walk over a crossing whatever stands on it, so an ego that stops with its front on a
+crosswalk is walked into: with the shield holding the wheel (session 21), 15 of the 44 collisions of
+200 nominal left turns (150 s timeout) were pedestrians walking into the ego's front at the exit
+crosswalk, 10 of them into an ego standing still. Drivers stop short of a crosswalk that someone is
+on, not on it: a claimed crossing is a line the shield holds the ego short of, as it holds a red
+stop line — but only while full braking can still stop short of it, since stopping halfway onto
+it is the very thing to avoid.
+
+Pure geometry on numpy and shapely; the spans are per path and per episode, the claims per step.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from shapely.geometry import LineString, Point, Polygon
+
+from crossroads.constants import EGO_WIDTH_M, STOP_LINE_GAP_M
+
+# [m] a pedestrian this close to a crossing's area counts as on it (stepping off the kerb)
+ON_CROSSING_M = 1.0
+# [s] a pedestrian on a crossing claims the part of it it reaches within this time at its speed
+# toward the ego's path: the ~3 s an ego from a stand needs to clear a 4 m crossing with its 4.8 m
+CLAIM_HORIZON_S = 3.0
+# [m] the strip either side of the ego's path a claiming pedestrian must be in or walk into: half the
+# ego's width and the shield's 1 m clearance
+CLAIM_HALF_WIDTH_M = EGO_WIDTH_M / 2.0 + 1.0
+
+
+@dataclass(frozen=True)
+class CrossingSpan:
+    """The stretch of one path that runs over one crossing."""
+
+    s_in_m: float  # [m] arc length where the ego's body first reaches the crossing's area
+    s_out_m: float  # [m] arc length where its centre line leaves it
+    area: Polygon  # the crossing's area, widened by ON_CROSSING_M (who counts as on it)
+    centre: LineString  # the path's centre line over the crossing (whose strip a pedestrian claims)
+
+
+def crossing_spans(points: np.ndarray, s: np.ndarray, crossings: Sequence[Polygon]) -> tuple[CrossingSpan, ...]:
+    """The spans of a path (``points`` (n, 2) at arc lengths ``s`` (n,)) over the ``crossings``' areas,
+    in path order: a point is over a crossing when the ego's half-width reaches its area."""
+    out = []
+    reach = EGO_WIDTH_M / 2.0
+    for area in crossings:
+        near = area.buffer(reach)
+        inside = np.array([near.contains(Point(float(x), float(y))) for x, y in points])
+        if not inside.any():
+            continue
+        idx = np.flatnonzero(inside)
+        lo, hi = int(idx[0]), int(idx[-1])
+        centre = LineString(points[lo:hi + 1]) if hi > lo else LineString([points[lo], points[lo]])
+        out.append(CrossingSpan(float(s[lo]), float(s[hi]), area.buffer(ON_CROSSING_M), centre))
+    return tuple(sorted(out, key=lambda c: c.s_in_m))
+
+
+def claimed(span: CrossingSpan, pedestrians: np.ndarray) -> bool:
+    """Whether any of the perceived ``pedestrians`` (k, 6: p_x, p_y, v, φ, L, W) claims the crossing:
+    on its area, and inside the strip of the ego's path there or walking into it within
+    ``CLAIM_HORIZON_S``. Someone on the crossing but walking away from the path, or on its far part
+    walking too slowly to reach the path in that time, does not."""
+    for px, py, v, phi, _, _ in np.asarray(pedestrians, np.float64).reshape(-1, 6):
+        here = Point(px, py)
+        if not span.area.contains(here):
+            continue
+        gap = span.centre.distance(here)
+        if gap <= CLAIM_HALF_WIDTH_M:
+            return True
+        # the walking direction against the direction to the nearest point of the path
+        foot = span.centre.interpolate(span.centre.project(here))
+        to_path = np.array([foot.x - px, foot.y - py]) / max(gap, 1e-9)
+        closing = v * float(np.cos(phi) * to_path[0] + np.sin(phi) * to_path[1])  # [m/s] toward the path
+        if closing > 0.0 and gap - closing * CLAIM_HORIZON_S <= CLAIM_HALF_WIDTH_M:
+            return True
+    return False
+
+
+def crosswalk_line_m(spans: Sequence[CrossingSpan], front_s_m: float, pedestrians: np.ndarray,
+                     stopping_m: float) -> float | None:
+    """The front bumper's distance [m] to the nearest claimed crossing ahead on the path (``spans`` of
+    it, the bumper at arc length ``front_s_m``), when the ego can still stand ``STOP_LINE_GAP_M``
+    short of it (full braking takes ``stopping_m``); else None. Past a crossing's near edge, or too
+    close to stop short of it, the ego drives on over it: the shield's participant checks remain."""
+    for span in spans:
+        gap = span.s_in_m - front_s_m
+        if gap < 0.0:
+            continue  # the bumper is on or past it
+        if stopping_m + STOP_LINE_GAP_M > gap:
+            return None  # too late to stand short of the nearest one ahead
+        if claimed(span, pedestrians):
+            return gap
+    return None

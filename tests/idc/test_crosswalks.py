@@ -1,0 +1,61 @@
+"""Crossings on the ego's path and the pedestrians that claim them (idc.crosswalks)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from shapely.geometry import box
+
+from crossroads.constants import EGO_WIDTH_M, STOP_LINE_GAP_M
+from crossroads.idc.crosswalks import CLAIM_HALF_WIDTH_M, claimed, crossing_spans, crosswalk_line_m
+from crossroads.network import catalogue
+from crossroads.sim.config import WorldConfig
+from crossroads.sim.world import World
+
+# a straight path due east along y = 0, points every 0.5 m, and a 4 m crossing over it at x 20..24
+PATH = np.column_stack([np.arange(0.0, 60.5, 0.5), np.zeros(121)])
+S = PATH[:, 0].copy()
+CROSSING = box(20.0, -10.0, 24.0, 10.0)
+
+
+def _ped(x: float, y: float, v: float, phi: float) -> np.ndarray:
+    return np.array([[x, y, v, phi, 0.3, 0.5]])
+
+
+def test_a_span_starts_where_the_egos_half_width_reaches_the_crossing() -> None:
+    (span,) = crossing_spans(PATH, S, [CROSSING])
+    assert span.s_in_m == pytest.approx(20.0 - EGO_WIDTH_M / 2.0, abs=0.5)
+    assert span.s_out_m == pytest.approx(24.0 + EGO_WIDTH_M / 2.0, abs=0.5)
+    assert crossing_spans(PATH, S, [box(20.0, 5.0, 24.0, 10.0)]) == ()  # beside the path: no span
+
+
+def test_who_claims_a_crossing() -> None:
+    (span,) = crossing_spans(PATH, S, [CROSSING])
+    assert claimed(span, _ped(22.0, 0.5, 1.3, np.pi / 2))  # on it, in the ego's strip
+    assert claimed(span, _ped(22.0, -6.0, 1.4, np.pi / 2))  # walking toward the path, there within 3 s
+    assert not claimed(span, _ped(22.0, -8.0, 1.0, np.pi / 2))  # too far to reach the strip in 3 s
+    assert not claimed(span, _ped(22.0, -(CLAIM_HALF_WIDTH_M + 1.0), 1.3, -np.pi / 2))  # walking away
+    assert not claimed(span, _ped(30.0, 0.0, 1.3, np.pi / 2))  # on the road past it, not on the crossing
+    assert not claimed(span, np.zeros((0, 6)))
+
+
+def test_the_line_is_the_nearest_claimed_crossing_the_ego_can_still_stop_short_of() -> None:
+    spans = crossing_spans(PATH, S, [CROSSING])
+    on_it = _ped(22.0, 0.0, 1.3, np.pi / 2)
+    gap = spans[0].s_in_m - 5.0
+    assert crosswalk_line_m(spans, 5.0, on_it, stopping_m=3.0) == pytest.approx(gap)
+    assert crosswalk_line_m(spans, 5.0, on_it, stopping_m=gap - STOP_LINE_GAP_M + 0.1) is None  # too late
+    assert crosswalk_line_m(spans, 5.0, np.zeros((0, 6)), stopping_m=3.0) is None  # nobody on it
+    assert crosswalk_line_m(spans, spans[0].s_in_m + 0.5, on_it, stopping_m=0.0) is None  # already on it
+
+
+def test_the_nominal_left_turn_runs_over_the_crossings_of_its_entry_and_exit() -> None:
+    with World(WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", warmup_s=1.0)) as world:
+        obs = world.reset(1)
+        assert len(obs.crossings) == 4
+        for path in obs.candidates:
+            spans = crossing_spans(path.points, path.s, obs.crossings)
+            assert len(spans) == 2
+            entry, exit_ = spans
+            assert entry.s_in_m < path.s_stop_line + 1.0 < entry.s_out_m  # just past the stop line
+            assert path.s_stop_line + 15.0 < exit_.s_in_m < path.s_exit  # where the turn ends
