@@ -7,7 +7,15 @@ import pytest
 from shapely.geometry import box
 
 from crossroads.constants import EGO_WIDTH_M, STOP_LINE_GAP_M
-from crossroads.idc.crosswalks import CLAIM_HALF_WIDTH_M, claimed, crossing_spans, crosswalk_line_m
+from crossroads.idc.crosswalks import (
+    CLAIM_HALF_WIDTH_M,
+    CLAIM_HORIZON_MAX_S,
+    CLEARING_ACCEL_MPS2,
+    claimed,
+    clearing_time_s,
+    crossing_spans,
+    crosswalk_line_m,
+)
 from crossroads.network import catalogue
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.world import World
@@ -31,22 +39,33 @@ def test_a_span_starts_where_the_egos_half_width_reaches_the_crossing() -> None:
 
 def test_who_claims_a_crossing() -> None:
     (span,) = crossing_spans(PATH, S, [CROSSING])
-    assert claimed(span, _ped(22.0, 0.5, 1.3, np.pi / 2))  # on it, in the ego's strip
-    assert claimed(span, _ped(22.0, -6.0, 1.4, np.pi / 2))  # walking toward the path, there within 3 s
-    assert not claimed(span, _ped(22.0, -8.0, 1.0, np.pi / 2))  # too far to reach the strip in 3 s
-    assert not claimed(span, _ped(22.0, -(CLAIM_HALF_WIDTH_M + 1.0), 1.3, -np.pi / 2))  # walking away
-    assert not claimed(span, _ped(30.0, 0.0, 1.3, np.pi / 2))  # on the road past it, not on the crossing
-    assert not claimed(span, np.zeros((0, 6)))
+    assert claimed(span, _ped(22.0, 0.5, 0.0, np.pi / 2), 0.0)  # on it, in the ego's strip
+    assert claimed(span, _ped(22.0, -6.0, 1.4, np.pi / 2), 3.0)  # walking toward the path, there within 3 s
+    assert not claimed(span, _ped(22.0, -8.0, 1.0, np.pi / 2), 3.0)  # too far to reach the strip in 3 s
+    assert claimed(span, _ped(22.0, -8.0, 1.0, np.pi / 2), 6.0)  # ... but not in 6 s (a slower ego)
+    assert not claimed(span, _ped(22.0, -(CLAIM_HALF_WIDTH_M + 1.0), 1.3, -np.pi / 2), 6.0)  # walking away
+    assert not claimed(span, _ped(30.0, 0.0, 1.3, np.pi / 2), 6.0)  # on the road past it, not on the crossing
+    assert not claimed(span, np.zeros((0, 6)), 6.0)
+
+
+def test_the_time_to_clear_a_crossing_grows_as_the_ego_slows() -> None:
+    assert clearing_time_s(12.0, 6.0) == pytest.approx((-6.0 + np.sqrt(36.0 + 2 * CLEARING_ACCEL_MPS2 * 12.0)) / CLEARING_ACCEL_MPS2)
+    assert clearing_time_s(12.0, 0.0) > clearing_time_s(12.0, 2.0) > clearing_time_s(12.0, 6.0)
+    assert clearing_time_s(200.0, 0.0) == CLAIM_HORIZON_MAX_S and clearing_time_s(-1.0, 3.0) == 0.0
 
 
 def test_the_line_is_the_nearest_claimed_crossing_the_ego_can_still_stop_short_of() -> None:
     spans = crossing_spans(PATH, S, [CROSSING])
     on_it = _ped(22.0, 0.0, 1.3, np.pi / 2)
     gap = spans[0].s_in_m - 5.0
-    assert crosswalk_line_m(spans, 5.0, on_it, stopping_m=3.0) == pytest.approx(gap)
-    assert crosswalk_line_m(spans, 5.0, on_it, stopping_m=gap - STOP_LINE_GAP_M + 0.1) is None  # too late
-    assert crosswalk_line_m(spans, 5.0, np.zeros((0, 6)), stopping_m=3.0) is None  # nobody on it
-    assert crosswalk_line_m(spans, spans[0].s_in_m + 0.5, on_it, stopping_m=0.0) is None  # already on it
+    assert crosswalk_line_m(spans, 5.0, on_it, stopping_m=3.0, speed_mps=5.0) == pytest.approx(gap)
+    assert crosswalk_line_m(spans, 5.0, on_it, stopping_m=gap - STOP_LINE_GAP_M + 0.1, speed_mps=5.0) is None  # too late
+    assert crosswalk_line_m(spans, 5.0, np.zeros((0, 6)), stopping_m=3.0, speed_mps=5.0) is None  # nobody on it
+    assert crosswalk_line_m(spans, spans[0].s_in_m + 0.5, on_it, stopping_m=0.0, speed_mps=0.0) is None  # already on it
+    # someone 6 m out walking in at 1 m/s: in the way of an ego crawling up, not of one at 8 m/s
+    walking_in = _ped(22.0, -6.0, 1.0, np.pi / 2)
+    assert crosswalk_line_m(spans, 15.0, walking_in, stopping_m=1.0, speed_mps=0.5) is not None
+    assert crosswalk_line_m(spans, 5.0, walking_in, stopping_m=8.0, speed_mps=8.0) is None
 
 
 def test_the_nominal_left_turn_runs_over_the_crossings_of_its_entry_and_exit() -> None:

@@ -14,19 +14,25 @@ Pure geometry on numpy and shapely; the spans are per path and per episode, the 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from shapely.geometry import LineString, Point, Polygon
 
-from crossroads.constants import EGO_WIDTH_M, STOP_LINE_GAP_M
+from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, STOP_LINE_GAP_M
 
 # [m] a pedestrian this close to a crossing's area counts as on it (stepping off the kerb)
 ON_CROSSING_M = 1.0
-# [s] a pedestrian on a crossing claims the part of it it reaches within this time at its speed
-# toward the ego's path: the ~3 s an ego from a stand needs to clear a 4 m crossing with its 4.8 m
-CLAIM_HORIZON_S = 3.0
+# [m/s²] a pedestrian on a crossing claims it if it walks into the ego's strip before the ego, from
+# its speed now and accelerating at this, has driven its whole length over the crossing. Why not a
+# fixed time: with 3 s, on the 60 s nominal left, seed 1860059625, a pedestrian 6.2 m from the path
+# did not claim the crossing while the ego crawled toward it at 0.6 m/s; when it did, the ego's front
+# was on it, and the pedestrian walked into the standing ego. (choice) 1 m/s²: the pass profile's
+# gentle pull-away, not the 1.5 m/s² limit.
+CLEARING_ACCEL_MPS2 = 1.0
+CLAIM_HORIZON_MAX_S = 8.0  # [s] no one farther out than this claims a crossing, however slow the ego
 # [m] the strip either side of the ego's path a claiming pedestrian must be in or walk into: half the
 # ego's width and the shield's 1 m clearance
 CLAIM_HALF_WIDTH_M = EGO_WIDTH_M / 2.0 + 1.0
@@ -59,11 +65,19 @@ def crossing_spans(points: np.ndarray, s: np.ndarray, crossings: Sequence[Polygo
     return tuple(sorted(out, key=lambda c: c.s_in_m))
 
 
-def claimed(span: CrossingSpan, pedestrians: np.ndarray) -> bool:
+def clearing_time_s(distance_m: float, speed_mps: float) -> float:
+    """[s] for the ego to drive ``distance_m`` from ``speed_mps`` accelerating at CLEARING_ACCEL_MPS2
+    (d = v t + a t² / 2 solved for t), at most CLAIM_HORIZON_MAX_S."""
+    v, a = max(speed_mps, 0.0), CLEARING_ACCEL_MPS2
+    t = (-v + math.sqrt(v * v + 2.0 * a * max(distance_m, 0.0))) / a
+    return min(t, CLAIM_HORIZON_MAX_S)
+
+
+def claimed(span: CrossingSpan, pedestrians: np.ndarray, horizon_s: float) -> bool:
     """Whether any of the perceived ``pedestrians`` (k, 6: p_x, p_y, v, φ, L, W) claims the crossing:
     on its area, and inside the strip of the ego's path there or walking into it within
-    ``CLAIM_HORIZON_S``. Someone on the crossing but walking away from the path, or on its far part
-    walking too slowly to reach the path in that time, does not."""
+    ``horizon_s`` (the ego's :func:`clearing_time_s`). Someone on the crossing but walking away from
+    the path, or on its far part walking too slowly to reach the path in that time, does not."""
     for px, py, v, phi, _, _ in np.asarray(pedestrians, np.float64).reshape(-1, 6):
         here = Point(px, py)
         if not span.area.contains(here):
@@ -75,23 +89,25 @@ def claimed(span: CrossingSpan, pedestrians: np.ndarray) -> bool:
         foot = span.centre.interpolate(span.centre.project(here))
         to_path = np.array([foot.x - px, foot.y - py]) / max(gap, 1e-9)
         closing = v * float(np.cos(phi) * to_path[0] + np.sin(phi) * to_path[1])  # [m/s] toward the path
-        if closing > 0.0 and gap - closing * CLAIM_HORIZON_S <= CLAIM_HALF_WIDTH_M:
+        if closing > 0.0 and gap - closing * horizon_s <= CLAIM_HALF_WIDTH_M:
             return True
     return False
 
 
 def crosswalk_line_m(spans: Sequence[CrossingSpan], front_s_m: float, pedestrians: np.ndarray,
-                     stopping_m: float) -> float | None:
+                     stopping_m: float, speed_mps: float) -> float | None:
     """The front bumper's distance [m] to the nearest claimed crossing ahead on the path (``spans`` of
-    it, the bumper at arc length ``front_s_m``), when the ego can still stand ``STOP_LINE_GAP_M``
-    short of it (full braking takes ``stopping_m``); else None. Past a crossing's near edge, or too
-    close to stop short of it, the ego drives on over it: the shield's participant checks remain."""
+    it, the bumper at arc length ``front_s_m``, the ego at ``speed_mps``), when the ego can still
+    stand ``STOP_LINE_GAP_M`` short of it (full braking takes ``stopping_m``); else None. Past a
+    crossing's near edge, or too close to stop short of it, the ego drives on over it: the shield's
+    participant checks remain."""
     for span in spans:
         gap = span.s_in_m - front_s_m
         if gap < 0.0:
             continue  # the bumper is on or past it
         if stopping_m + STOP_LINE_GAP_M > gap:
             return None  # too late to stand short of the nearest one ahead
-        if claimed(span, pedestrians):
+        # the front must get past the crossing by the ego's length for its rear to leave it
+        if claimed(span, pedestrians, clearing_time_s(span.s_out_m - front_s_m + EGO_LENGTH_M, speed_mps)):
             return gap
     return None

@@ -106,8 +106,9 @@ class IdcController:
             return line
         ego = observation.ego
         front_s = path.project(float(ego[0]), float(ego[1])).s_m + EGO_LENGTH_M / 2.0
+        speed = max(float(ego[2]), 0.0)
         crosswalk = crosswalk_line_m(self._spans[path_index], front_s, pedestrians,
-                                     float(braking_distance_m(max(float(ego[2]), 0.0), float(ego[7]))))
+                                     float(braking_distance_m(speed, float(ego[7]))), speed)
         if crosswalk is None:
             return line
         return crosswalk if line is None else min(line, crosswalk)

@@ -37,7 +37,9 @@ While the light holds the ego at the stop line (red, or yellow in the stop mode:
 that ends less than ``STOP_LINE_GAP_M`` short of it intrudes by the shortfall (:func:`travelled_m`),
 and the larger of the two intrusions counts. Without it the shipped APG, which tracks the stop
 profile loosely, crossed a red line on an empty road at 4.7 m/s; with it APG and DPG stand 0.50 m
-short (docs/measurements/red-lights.md §4).
+short (docs/measurements/red-lights.md §4). A pedestrian crossing that someone is on in the ego's
+path is such a line too, while full braking can still stand short of it (the decision passes the
+nearer of the two: :mod:`crossroads.idc.crosswalks`).
 
 What was measured against it, on 60 seeds of the nominal left turn that are not the evaluation's
 (base seed 777) with run 5's APG — passed / collisions / timeouts: this rule 16 / 27 / 16; counting
