@@ -10,8 +10,10 @@ from crossroads.idc.constraints import EGO_CIRCLE_OFFSET_M, EGO_RADIUS_M
 from crossroads.idc.shield import (
     SHIELD_CLEARANCE_M,
     SHIELD_RELEASE_MARGIN_M,
+    EXIT_ALIGNED_RAD,
     HOLD_WHEEL,
     backups,
+    braking_action,
     followers,
     go_is_worse,
     predicted_others,
@@ -208,4 +210,23 @@ def test_braking_holds_the_wheel_it_was_checked_with() -> None:
     # *brake* is what the command drives: its first step is HOLD_WHEEL's, so the next step's *go*
     # (that command, then braking) retraces it
     again = backups(swerving, *scene, HOLD_WHEEL)
+    np.testing.assert_allclose(again.by_obstacle[0], again.by_obstacle[1])
+
+
+def test_at_the_end_of_its_turn_braking_turns_the_wheel_back_to_straight() -> None:
+    """Mid-turn the shield's braking holds the wheel (the ego stays on its arc); within 15° of its
+    path's exit heading it turns the wheel back toward straight at the rate limit, so that the nose
+    does not swing on into the opposite leg's lanes; the backups are rolled out the same way."""
+    turning = EGO.copy()
+    turning[6] = 0.1  # the wheel turned left, the ego heading east (0 rad)
+    assert np.array_equal(braking_action(turning), HOLD_WHEEL)  # no path given: held
+    assert np.array_equal(braking_action(turning, exit_heading=np.pi / 2), HOLD_WHEEL)  # 90° to go
+    assert braking_action(turning, exit_heading=np.deg2rad(10.0)).tolist() == [-0.4, -JERK_MAX]
+    turning[6] = 0.02
+    np.testing.assert_allclose(braking_action(turning, exit_heading=-np.deg2rad(10.0)), [-0.2, -JERK_MAX])
+    assert EXIT_ALIGNED_RAD == pytest.approx(np.deg2rad(15.0))
+    # what the command drives when it brakes is the brake backup: go with that command retraces it
+    scene = _scene((float(braking_distance_m(8.0, 0.0)) + 3.0, 0.0, 0.0, 0.0))
+    command = braking_action(turning, exit_heading=0.0)
+    again = backups(turning, *scene, command, exit_heading=0.0)
     np.testing.assert_allclose(again.by_obstacle[0], again.by_obstacle[1])

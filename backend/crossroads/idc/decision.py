@@ -20,7 +20,7 @@ from torch import nn
 
 from crossroads.constants import EGO_LENGTH_M
 from crossroads.idc.controller import Decision, SpeedMode
-from crossroads.idc.crosswalks import CrossingSpan, crossing_spans, crosswalk_line_m
+from crossroads.idc.crosswalks import CrossingSpan, can_stand_short_of, crossing_spans, nearest_claimed_m
 from crossroads.idc.lights import light_holds_at_line, speed_mode_from
 from crossroads.idc.observed import observed_others
 from crossroads.idc.shield import shield_action
@@ -85,7 +85,8 @@ class IdcController:
         if kappa is None:
             return Decision(action, best, mode, values)
         verdict = shield_action(observation.ego, others, kappa, action, line_m=self._shield_line(holds, observation, best),
-                                before_line=not observation.past_stop_line, braked_last_step=self._shield_braked)
+                                before_line=not observation.past_stop_line, braked_last_step=self._shield_braked,
+                                exit_heading=float(self._candidates[best].heading[-1]))
         self._shield_braked = verdict.braking
         return Decision(verdict.action, best, mode, values, shield_braking=verdict.braking)
 
@@ -93,7 +94,8 @@ class IdcController:
     def _shield_line(self, holds: bool, observation: Observation, path_index: int) -> float | None:
         """The line the shield holds the ego short of: the nearer of the stop line while the light
         holds the ego (:func:`_line_if`) and a crossing a pedestrian claims on path ``path_index``
-        (:func:`crossroads.idc.crosswalks.crosswalk_line_m`), as the front bumper's distance [m]."""
+        while full braking can still stand short of it (:mod:`crossroads.idc.crosswalks`), as the
+        front bumper's distance [m]."""
         line = _line_if(holds, observation)
         if not observation.crossings:
             return line
@@ -107,9 +109,9 @@ class IdcController:
         ego = observation.ego
         front_s = path.project(float(ego[0]), float(ego[1])).s_m + EGO_LENGTH_M / 2.0
         speed = max(float(ego[2]), 0.0)
-        crosswalk = crosswalk_line_m(self._spans[path_index], front_s, pedestrians,
-                                     float(braking_distance_m(speed, float(ego[7]))), speed)
-        if crosswalk is None:
+        crosswalk = nearest_claimed_m(self._spans[path_index], front_s, pedestrians, speed)
+        # the braking distance only when needed: stepping f_ego costs ~0.2 ms
+        if crosswalk is None or not can_stand_short_of(crosswalk, float(braking_distance_m(speed, float(ego[7])))):
             return line
         return crosswalk if line is None else min(line, crosswalk)
 

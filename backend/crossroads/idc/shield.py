@@ -17,11 +17,13 @@ pass-mode speed to stand still, in two futures: each keeping its speed, and each
 stand (a follower — behind the ego, heading its way — brakes in both, :func:`followers`). The ego
 is rolled out with f_ego along two backups —
 
-* *go*: u now, then full braking (Δa = −4.5 m/s³ each step, the wheel held);
-* *brake*: full braking from now, the wheel held (Δδ = 0).
+* *go*: u now, then full braking (Δa = −4.5 m/s³ each step);
+* *brake*: full braking from now;
 
-When the shield brakes, its command is *brake*'s first action, the wheel included (``HOLD_WHEEL``):
-what it drives is then the backup it checked, and what the last step's *go* checked after u.
+both with the wheel held (Δδ = 0), or, within 15° of the path's exit heading, turned back toward
+straight (:func:`braking_action`). When the shield brakes, its command is *brake*'s first action,
+the wheel included: what it drives is then the backup it checked, and what the last step's *go*
+checked after u.
 
 If *go* keeps the ego's circles ``SHIELD_CLEARANCE_M`` (the training constraints' safety margin)
 apart from every participant's in both futures of :func:`predicted_others`, u is the command: after
@@ -64,9 +66,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from crossroads.constants import DT_S, JERK_MAX, OTHER_DECEL_MPS2, STOP_LINE_GAP_M, TRACK_STATE_DIM
+from crossroads.constants import DT_S, JERK_MAX, OTHER_DECEL_MPS2, STEER_RATE_MAX, STOP_LINE_GAP_M, TRACK_STATE_DIM
 from crossroads.idc.constraints import SAFETY_MARGIN_M, deepest_by_slot, safety_constraints
-from crossroads.idc.state import KIND_ROWS, N_OTHERS, O_L, O_PHI, O_PX, O_PY, O_V, PHI, PX, PY
+from crossroads.idc.state import DELTA, KIND_ROWS, N_OTHERS, O_L, O_PHI, O_PX, O_PY, O_V, PHI, PX, PY
 from crossroads.sim.ego import ego_step
 
 # [m] the clearance the backups must keep between circles: the training constraints' safety margin.
@@ -153,14 +155,29 @@ class Backups(NamedTuple):
         return float(self.by_obstacle[_BRAKE, _LINE])
 
 
-# [Δδ rad/s, Δa m/s³] what the shield commands when it brakes, and *brake*'s every step: full braking,
-# the wheel held. Why held: the backups are checked with the wheel held after their first step, but
-# until session 21 a braking step kept the policy's steering rate. On the nominal left turn the
+# [Δδ rad/s, Δa m/s³] the shield's braking step (:func:`braking_action`) until the end of the turn, in
+# its command and in both backups alike: full braking, the wheel held. Why the command too: the
+# backups were checked with the wheel held, but until session 21 a braking step kept the policy's
+# steering rate. On the nominal left turn the
 # trained policy swerves left around a queued car; *go*, curving left on the held wheel, cleared the
 # car, the ego braked while the policy steered back right, and its front corner hit the car it had
 # been predicted to pass (27 of the 57 collisions of 200 runs, 150 s timeout, all 5 m behind a
 # standing car, 1-2 m to its left; seeds 352480436, 1284190969, docs/measurements/safety-shield.md)
 HOLD_WHEEL = np.array([0.0, -JERK_MAX])
+# [rad] within this of its path's exit heading the ego is at the end of its turn: braking there turns
+# the wheel back toward straight (at the steering-rate limit) instead of holding it. Why: held at the
+# end of the left turn, the wheel swung the nose into the opposite leg's cars at their stop line
+# (6 of 9 such collisions at 150 s were seeds that had passed before the wheel was held), while
+# straightened mid-turn it took the ego off its arc into a cyclist (seed 514166452)
+EXIT_ALIGNED_RAD = np.deg2rad(15.0)
+
+
+def braking_action(ego: np.ndarray, exit_heading: float | None = None) -> np.ndarray:
+    """The shield's braking step from ``ego`` (8,): full braking, the wheel held (``HOLD_WHEEL``), or
+    turned back toward straight once the ego heads within ``EXIT_ALIGNED_RAD`` of ``exit_heading``."""
+    if exit_heading is None or abs((ego[PHI] - exit_heading + np.pi) % (2 * np.pi) - np.pi) >= EXIT_ALIGNED_RAD:
+        return HOLD_WHEEL.copy()
+    return np.array([float(np.clip(-ego[DELTA] / DT_S, -STEER_RATE_MAX, STEER_RATE_MAX)), -JERK_MAX])
 # [m] an obstacle counts as intruded deeper along one backup than the other only past this: below
 # it the two differ by rounding (one step of go from a stand moves the ego ~1 mm)
 SHIELD_TIE_M = 1e-4
@@ -212,16 +229,18 @@ def travelled_m(start: np.ndarray, egos: np.ndarray) -> np.ndarray:
 
 
 def backups(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.ndarray,
-            steps: int = SHIELD_HORIZON_STEPS, line_m: float | None = None) -> Backups:
+            steps: int = SHIELD_HORIZON_STEPS, line_m: float | None = None,
+            exit_heading: float | None = None) -> Backups:
     """*go* and *brake* from ``ego`` (8,) with the policy's ``action`` (2,) (module docstring),
     against every participant of ``others`` (16, 6) turning by ``kappa`` (16,) in both futures and,
     when the light holds the ego at the line, ``line_m`` ahead of its front bumper."""
     egos = np.empty((steps, 2, 8))
-    for row, first in ((_GO, action), (_BRAKE, HOLD_WHEEL)):
-        state = ego_step(np.asarray(ego, np.float64), np.asarray(first, np.float64))  # (8,): f_ego on floats
+    ego = np.asarray(ego, np.float64)
+    for row, first in ((_GO, np.asarray(action, np.float64)), (_BRAKE, braking_action(ego, exit_heading))):
+        state = ego_step(ego, first)  # (8,): f_ego on floats
         for i in range(steps):
             egos[i, row] = state
-            state = ego_step(state, HOLD_WHEEL)
+            state = ego_step(state, braking_action(state, exit_heading))
     by_slot = _deepest_by_slot(ego, egos, np.asarray(others, np.float64), np.asarray(kappa, np.float64), steps)
     past = (np.full(2, -np.inf) if line_m is None
             else travelled_m(np.asarray(ego, np.float64), egos) - (line_m - STOP_LINE_GAP_M))  # (2,)
@@ -243,11 +262,12 @@ def _deepest_by_slot(ego: np.ndarray, egos: np.ndarray, others: np.ndarray, kapp
 
 def shield_action(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.ndarray,
                   line_m: float | None = None, before_line: bool = False,
-                  braked_last_step: bool = False) -> ShieldVerdict:
+                  braked_last_step: bool = False, exit_heading: float | None = None) -> ShieldVerdict:
     """The command for a step whose policy action is ``action`` (module docstring); ``line_m`` is
-    the front bumper's distance to the stop line [m] when the light holds the ego there, else None."""
-    b = backups(ego, others, kappa, action, line_m=line_m)
+    the front bumper's distance to the stop line [m] when the light holds the ego there, else None;
+    ``exit_heading`` the heading [rad] the ego's path ends in (:func:`braking_action`)."""
+    b = backups(ego, others, kappa, action, line_m=line_m, exit_heading=exit_heading)
     braking = go_is_worse(b.by_obstacle, before_line=before_line,
                           release_m=SHIELD_RELEASE_MARGIN_M if braked_last_step else 0.0)
-    command = HOLD_WHEEL.copy() if braking else np.asarray(action, dtype=np.float64).copy()
+    command = braking_action(np.asarray(ego, np.float64), exit_heading) if braking else np.asarray(action, dtype=np.float64).copy()
     return ShieldVerdict(command, braking, b)
