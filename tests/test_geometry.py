@@ -20,6 +20,8 @@ from crossroads.geometry import (
     sample_cubic_bezier,
     sample_cubic_bezier_with_t,
     unit,
+    wrap_angle,
+    wrap_scalar,
 )
 
 angles = st.floats(-math.pi, math.pi, allow_nan=False)
@@ -119,3 +121,9 @@ def test_project_onto_polyline() -> None:
     assert (i, s, lat) == (1, pytest.approx(16.0), pytest.approx(-1.0))  # right of the +y direction
     _, s, lat = project_onto_polyline(line, (-3.0, -2.0))  # behind the start: s clamped
     assert s == 0.0 and lat == pytest.approx(-2.0)
+
+
+def test_wrap_scalar_is_wrap_angle_on_one_float() -> None:
+    for angle in np.linspace(-20.0, 20.0, 401):
+        assert wrap_scalar(float(angle)) == pytest.approx(wrap_angle(float(angle)), abs=1e-12)
+    assert wrap_scalar(math.pi) == pytest.approx(-math.pi)  # [-π, π), as wrap_angle

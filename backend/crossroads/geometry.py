@@ -39,6 +39,12 @@ def wrap_angle(angle_rad):
     return float(wrapped) if wrapped.ndim == 0 else wrapped
 
 
+def wrap_scalar(angle_rad: float) -> float:
+    """:func:`wrap_angle` of one Python float, without numpy's per-call cost (for per-step hot paths;
+    Python's % is numpy's mod: the same result)."""
+    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
+
+
 def sumo_angle_to_heading(angle_deg: float) -> float:
     """SUMO's navigational angle (degrees, clockwise from north) to our heading (rad, CCW from +x)."""
     return float(wrap_angle(math.radians(90.0 - angle_deg)))

@@ -3,8 +3,8 @@
 **(choice)** Not in the paper; used by the safety shield (:mod:`crossroads.idc.shield`). SUMO's
 pedestrians walk over a crossing whatever stands on it, so an ego that stops with its front on a
 crosswalk is walked into: with the shield holding the wheel (session 21), 15 of the 44 collisions of
-200 nominal left turns (150 s timeout) were pedestrians walking into the ego's front at the exit
-crosswalk, 10 of them into an ego standing still. Drivers stop short of a crosswalk that someone is
+200 nominal left turns (150 s timeout) were pedestrians walking into the ego's front, 14 at the exit
+crosswalk and 1 at the entry, 10 of them into an ego standing still. Drivers stop short of a crosswalk that someone is
 on, not on it: a claimed crossing is a line the shield holds the ego short of, as it holds a red
 stop line — but only while full braking can still stop short of it, since stopping halfway onto
 it is the very thing to avoid.
@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import shapely
 from shapely.geometry import LineString, Point, Polygon
 
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, STOP_LINE_GAP_M
@@ -52,13 +53,10 @@ def crossing_spans(points: np.ndarray, s: np.ndarray, crossings: Sequence[Polygo
     """The spans of a path (``points`` (n, 2) at arc lengths ``s`` (n,)) over the ``crossings``' areas,
     in path order: a point is over a crossing when the ego's half-width reaches its area."""
     out = []
-    reach = EGO_WIDTH_M / 2.0
     for area in crossings:
-        near = area.buffer(reach)
-        inside = np.array([near.contains(Point(float(x), float(y))) for x, y in points])
-        if not inside.any():
+        idx = np.flatnonzero(shapely.contains_xy(area.buffer(EGO_WIDTH_M / 2.0), points[:, 0], points[:, 1]))
+        if len(idx) == 0:
             continue
-        idx = np.flatnonzero(inside)
         lo, hi = int(idx[0]), int(idx[-1])
         centre = LineString(points[lo:hi + 1]) if hi > lo else LineString([points[lo], points[lo]])
         out.append(CrossingSpan(float(s[lo]), float(s[hi]), area.buffer(ON_CROSSING_M), centre))

@@ -90,7 +90,6 @@ class IdcController:
         self._shield_braked = verdict.braking
         return Decision(verdict.action, best, mode, values, shield_braking=verdict.braking)
 
-
     def _shield_line(self, holds: bool, observation: Observation, path_index: int) -> float | None:
         """The line the shield holds the ego short of: the nearer of the stop line while the light
         holds the ego (:func:`_line_if`) and a crossing a pedestrian claims on path ``path_index``

@@ -30,6 +30,7 @@ from crossroads.constants import (
     STEER_RATE_MAX,
     STOP_LINE_GAP_M,
 )
+from crossroads.geometry import wrap_scalar
 from crossroads.idc.controller import Decision, SpeedMode
 from crossroads.idc.lights import choose_speed_mode
 from crossroads.planning import CandidatePath
@@ -92,14 +93,9 @@ class _PathTable:
         x = self.x[i] + w * (self.x[i + 1] - self.x[i])
         y = self.y[i] + w * (self.y[i + 1] - self.y[i])
         h0 = self.heading[i]
-        h = _wrap(h0 + w * _wrap(self.heading[i + 1] - h0))
+        h = wrap_scalar(h0 + w * wrap_scalar(self.heading[i + 1] - h0))
         profile = self.v[mode]
         return x, y, h, profile[i] + w * (profile[i + 1] - profile[i])
-
-
-def _wrap(angle: float) -> float:
-    """``geometry.wrap_angle`` of one Python float (Python's % is numpy's mod: same result)."""
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
 
 
 def _stop_within(speed: float, gap_m: float, least_gap_m: float) -> float:
@@ -160,7 +156,7 @@ class RuleBasedController:
         s_ego = self._progress(table, x, y)
         lookahead = LOOKAHEAD_BASE_M + LOOKAHEAD_PER_MPS * vx
         tx, ty, _, _ = table.reference_at(s_ego + lookahead, mode)
-        alpha = _wrap(math.atan2(ty - y, tx - x) - heading)
+        alpha = wrap_scalar(math.atan2(ty - y, tx - x) - heading)
         steer_target = math.atan2(2.0 * WHEELBASE_M * math.sin(alpha), lookahead)
         steer_target = _clip(steer_target, -STEER_MAX, STEER_MAX)
 

@@ -61,12 +61,14 @@ participants (their prediction does not depend on the ego), so a check costs ~0.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
 from crossroads.constants import DT_S, JERK_MAX, OTHER_DECEL_MPS2, STEER_RATE_MAX, STOP_LINE_GAP_M, TRACK_STATE_DIM
+from crossroads.geometry import wrap_scalar
 from crossroads.idc.constraints import SAFETY_MARGIN_M, deepest_by_slot, safety_constraints
 from crossroads.idc.state import DELTA, KIND_ROWS, N_OTHERS, O_L, O_PHI, O_PX, O_PY, O_V, PHI, PX, PY
 from crossroads.sim.ego import ego_step
@@ -158,26 +160,30 @@ class Backups(NamedTuple):
 # [Δδ rad/s, Δa m/s³] the shield's braking step (:func:`braking_action`) until the end of the turn, in
 # its command and in both backups alike: full braking, the wheel held. Why the command too: the
 # backups were checked with the wheel held, but until session 21 a braking step kept the policy's
-# steering rate. On the nominal left turn the
-# trained policy swerves left around a queued car; *go*, curving left on the held wheel, cleared the
-# car, the ego braked while the policy steered back right, and its front corner hit the car it had
-# been predicted to pass (27 of the 57 collisions of 200 runs, 150 s timeout, all 5 m behind a
-# standing car, 1-2 m to its left; seeds 352480436, 1284190969, docs/measurements/safety-shield.md)
+# steering rate. On the nominal left turn the trained policy swerves left around a queued car; *go*,
+# curving left on the held wheel, cleared the car, the ego braked while the policy steered back
+# right, and it hit the car it had been predicted to pass (27 of the 57 collisions of 200 runs,
+# 150 s timeout: the ego 4.0–4.8 m behind a standing car, centres, and 0.2–2.2 m to its left; seeds
+# 352480436, 1284190969, docs/measurements/safety-shield.md)
 HOLD_WHEEL = np.array([0.0, -JERK_MAX])
+HOLD_WHEEL.flags.writeable = False  # shared by every braking step: a caller that wants to change it copies
 # [rad] within this of its path's exit heading the ego is at the end of its turn: braking there turns
 # the wheel back toward straight (at the steering-rate limit) instead of holding it. Why: held at the
 # end of the left turn, the wheel swung the nose into the opposite leg's cars at their stop line
 # (6 of 9 such collisions at 150 s were seeds that had passed before the wheel was held), while
 # straightened mid-turn it took the ego off its arc into a cyclist (seed 514166452)
-EXIT_ALIGNED_RAD = np.deg2rad(15.0)
+EXIT_ALIGNED_RAD = math.radians(15.0)
 
 
 def braking_action(ego: np.ndarray, exit_heading: float | None = None) -> np.ndarray:
-    """The shield's braking step from ``ego`` (8,): full braking, the wheel held (``HOLD_WHEEL``), or
-    turned back toward straight once the ego heads within ``EXIT_ALIGNED_RAD`` of ``exit_heading``."""
-    if exit_heading is None or abs((ego[PHI] - exit_heading + np.pi) % (2 * np.pi) - np.pi) >= EXIT_ALIGNED_RAD:
-        return HOLD_WHEEL.copy()
-    return np.array([float(np.clip(-ego[DELTA] / DT_S, -STEER_RATE_MAX, STEER_RATE_MAX)), -JERK_MAX])
+    """The shield's braking step from ``ego`` (8,): full braking, the wheel held (``HOLD_WHEEL``, read
+    only), or turned back toward straight once the ego heads within ``EXIT_ALIGNED_RAD`` of
+    ``exit_heading``. On Python floats: it runs for every step of both backups."""
+    if exit_heading is None or abs(wrap_scalar(float(ego[PHI]) - exit_heading)) >= EXIT_ALIGNED_RAD:
+        return HOLD_WHEEL
+    return np.array([min(max(-float(ego[DELTA]) / DT_S, -STEER_RATE_MAX), STEER_RATE_MAX), -JERK_MAX])
+
+
 # [m] an obstacle counts as intruded deeper along one backup than the other only past this: below
 # it the two differ by rounding (one step of go from a stand moves the ego ~1 mm)
 SHIELD_TIE_M = 1e-4
@@ -243,7 +249,7 @@ def backups(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.n
             state = ego_step(state, braking_action(state, exit_heading))
     by_slot = _deepest_by_slot(ego, egos, np.asarray(others, np.float64), np.asarray(kappa, np.float64), steps)
     past = (np.full(2, -np.inf) if line_m is None
-            else travelled_m(np.asarray(ego, np.float64), egos) - (line_m - STOP_LINE_GAP_M))  # (2,)
+            else travelled_m(ego, egos) - (line_m - STOP_LINE_GAP_M))  # (2,)
     return Backups(np.concatenate([by_slot, past[:, None]], axis=1))
 
 
@@ -269,5 +275,5 @@ def shield_action(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action
     b = backups(ego, others, kappa, action, line_m=line_m, exit_heading=exit_heading)
     braking = go_is_worse(b.by_obstacle, before_line=before_line,
                           release_m=SHIELD_RELEASE_MARGIN_M if braked_last_step else 0.0)
-    command = braking_action(np.asarray(ego, np.float64), exit_heading) if braking else np.asarray(action, dtype=np.float64).copy()
+    command = (braking_action(np.asarray(ego, np.float64), exit_heading) if braking else np.asarray(action, np.float64)).copy()
     return ShieldVerdict(command, braking, b)

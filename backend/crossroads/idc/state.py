@@ -63,7 +63,7 @@ from crossroads.constants import (
     STEER_MAX,
     TRACK_STATE_DIM,
 )
-from crossroads.geometry import FloatArray
+from crossroads.geometry import FloatArray, wrap_scalar
 from crossroads.planning.routes import CandidatePath
 
 # --- layout -----------------------------------------------------------------------------------------
@@ -110,11 +110,6 @@ safety threshold: the adversary's ξ moves it at most 25·0.8·√2 ≈ 28 m plu
 ξ_v accumulates, the ego drives at most ≈ 40 m, and thresholds are a few metres — so its safety
 constraints are far from binding and its penalty is exactly 0.
 """
-
-
-def _wrap(angle: float) -> float:
-    """A scalar angle wrapped into [-π, π) (same formula as the array versions)."""
-    return float((angle + math.pi) % (2.0 * math.pi) - math.pi)
 
 
 def pad_participant(ego: ArrayLike) -> FloatArray:
@@ -253,7 +248,7 @@ def reference_point(
             break
         lo, hi = 0, n - 1
     i, w = lo + k, float(t[k])
-    h = _wrap(head[i] + w * _wrap(head[i + 1] - head[i]))
+    h = wrap_scalar(head[i] + w * wrap_scalar(head[i + 1] - head[i]))
     v = speed[i] + w * (speed[i + 1] - speed[i])
     return Reference(i, float(fx[k]), float(fy[k]), float(h), float(v))
 
