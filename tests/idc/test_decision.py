@@ -17,7 +17,6 @@ from crossroads.network import catalogue
 from crossroads.rl.networks import make_networks
 from crossroads.sim.config import SignalStart, WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC
-from crossroads.sim.sumo import KIND_CODE, Snapshot
 from crossroads.sim.world import Perceived, World
 from support import REPO_ROOT
 
@@ -116,41 +115,3 @@ def test_the_shields_line_is_a_crossing_a_pedestrian_claims_ahead() -> None:
         # a held stop line nearer than the crossing wins
         assert controller._shield_line(True, claimed_obs, 0) == pytest.approx(obs.distance_to_stop_line_m)
         assert entry.s_in_m < exit_.s_in_m
-
-
-def _one_vehicle(obs, lane: str, back_m: float, speed: float, route: tuple[str, ...]):
-    """``obs`` seeing one car on ``lane``, ``back_m`` before the lane's end, at ``speed``."""
-    shape = obs.lane_shapes[lane]
-    end, before = shape[-1], shape[-2]
-    direction = (end - before) / np.linalg.norm(end - before)
-    x, y = end - back_m * direction
-    heading = float(np.arctan2(direction[1], direction[0]))
-    snap = Snapshot(time_s=obs.time_s, ids=np.array(["veh0"]), kind=np.array(["vehicle"]),
-                    kind_code=np.array([KIND_CODE["vehicle"]], np.int8), x=np.array([x]), y=np.array([y]),
-                    heading=np.array([heading]), speed=np.array([speed]), length=np.array([4.8]),
-                    width=np.array([1.8]), route=(route,), read_lanes=lambda: (lane,))
-    seen = Perceived(np.array([0]), np.array(["vehicle"]), np.array([[x, y, speed, heading, 4.8, 1.8]]))
-    return dataclasses.replace(obs, participants=snap, perceived=seen)
-
-
-def test_the_shield_holds_the_ego_at_its_stop_line_for_oncoming_traffic_it_would_meet() -> None:
-    """Turning left on c_three_lane, the ego (20 m before its line at 8.3 m/s) would be on the
-    oncoming lanes when a car 40 m before its own line at 10 m/s gets there (idc.conflicts): the
-    shield's line is the ego's stop line. Standing, or 60 m off (there after the ego has cleared by
-    more than GAP_S), the car claims nothing; past its stop line the ego is committed."""
-    controller = IdcController.from_checkpoint(REPO_ROOT / "models" / "apg.pt", shield=True)
-    config = WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", demand=NO_TRAFFIC, warmup_s=1.0)
-    with World(config) as world:
-        start = world.reset(0)
-        controller.reset(world.candidates)
-        ego = start.ego.copy()
-        ego[1] += 20.0  # the south approach runs along +y
-        obs = dataclasses.replace(start, ego=ego, distance_to_stop_line_m=start.distance_to_stop_line_m - 20.0)
-        straight_on = ("north_in", "south_out")
-        meets = _one_vehicle(obs, "north_in_3", 40.0, 10.0, straight_on)
-        assert controller._crossing_traffic_m(meets, 8.33) > obs.distance_to_stop_line_m  # the claimed stretch: in the junction
-        assert controller._shield_line(False, meets, 0) == pytest.approx(obs.distance_to_stop_line_m)
-        assert controller._shield_line(False, _one_vehicle(obs, "north_in_3", 40.0, 0.0, straight_on), 0) is None
-        assert controller._shield_line(False, _one_vehicle(obs, "north_in_3", 60.0, 10.0, straight_on), 0) is None
-        past = dataclasses.replace(meets, distance_to_stop_line_m=-1.0)
-        assert controller._shield_line(False, past, 0) is None

@@ -18,20 +18,16 @@ import numpy as np
 import torch
 from torch import nn
 
-from crossroads.constants import DT_S, EGO_LENGTH_M
+from crossroads.constants import EGO_LENGTH_M
 from crossroads.idc.controller import Decision, SpeedMode
-from crossroads.idc.conflicts import COMMIT_SLACK_M, CONFLICT_HORIZON_S, MOVING_MPS, crossing, nearest_conflict_m
 from crossroads.idc.crosswalks import CrossingSpan, can_stand_short_of, crossing_spans, nearest_claimed_m
 from crossroads.idc.lights import light_holds_at_line, speed_mode_from
 from crossroads.idc.observed import observed_others
-from crossroads.idc.shield import predicted_others, shield_action
+from crossroads.idc.shield import shield_action
 from crossroads.idc.state import build_states, select_others
 from crossroads.planning import CandidatePath
 from crossroads.sim.ego import braking_distance_m
-from crossroads.sim.lanes_ahead import CentreLine, centre_line, drive_along, lanes_ahead
-from crossroads.sim.world import Observation, participant_curvatures
-
-CONFLICT_STEPS = round(CONFLICT_HORIZON_S / DT_S)  # the crossing traffic's prediction (idc.conflicts)
+from crossroads.sim.world import Observation
 
 
 class IdcController:
@@ -47,7 +43,6 @@ class IdcController:
         self.shield = shield
         self._shield_braked = False  # the shield's verdict last step: it releases with a margin (idc.shield)
         self._spans: dict[int, tuple[CrossingSpan, ...]] = {}  # per candidate: its crossings (idc.crosswalks)
-        self._lines: dict[tuple[str, ...], CentreLine | None] = {}  # lanes ahead joined (predicted_crossing_traffic)
         # networks built with the path preview read 120-value states (crossroads.idc.state)
         self.preview = bool(getattr(policy, "preview", False))
 
@@ -63,7 +58,6 @@ class IdcController:
         self._candidates = tuple(candidates)
         self._shield_braked = False
         self._spans = {}
-        self._lines = {}
 
     def speed_mode(self, observation: Observation) -> SpeedMode:
         return speed_mode_from(_light_holds(observation), observation.front_vehicle_stopped_s)
@@ -97,99 +91,28 @@ class IdcController:
         return Decision(verdict.action, best, mode, values, shield_braking=verdict.braking)
 
     def _shield_line(self, holds: bool, observation: Observation, path_index: int) -> float | None:
-        """The line the shield holds the ego short of, as the front bumper's distance [m]: the
-        nearest of the stop line while the light holds the ego (:func:`_line_if`), a crossing a
-        pedestrian claims on path ``path_index`` (:mod:`crossroads.idc.crosswalks`) and the line
-        short of crossing traffic (:mod:`crossroads.idc.conflicts`) — the last two only while full
-        braking can still stand short of them."""
-        lines = [line] if (line := _line_if(holds, observation)) is not None else []
-        path = self._candidates[path_index]
-        ego = observation.ego
-        front_s = path.project(float(ego[0]), float(ego[1])).s_m + EGO_LENGTH_M / 2.0
-        speed = max(float(ego[2]), 0.0)
-        # (line, how far past it full braking may still end before the line is given up)
-        ahead = [(gap, slack) for gap, slack in ((self._claimed_crossing_m(observation, path_index, front_s, speed), 0.0),
-                                                 (self._yield_at_stop_line_m(observation, speed), COMMIT_SLACK_M))
-                 if gap is not None]
-        if ahead:
-            stopping = float(braking_distance_m(speed, float(ego[7])))  # only when needed: stepping f_ego costs ~0.2 ms
-            lines += [gap for gap, slack in ahead if can_stand_short_of(gap + slack, stopping)]
-        return min(lines) if lines else None
-
-    def _claimed_crossing_m(self, observation: Observation, path_index: int, front_s: float, speed: float) -> float | None:
-        """The bumper's distance [m] to the nearest crossing on the path a pedestrian claims, or None."""
+        """The line the shield holds the ego short of: the nearer of the stop line while the light
+        holds the ego (:func:`_line_if`) and a crossing a pedestrian claims on path ``path_index``
+        while full braking can still stand short of it (:mod:`crossroads.idc.crosswalks`), as the
+        front bumper's distance [m]."""
+        line = _line_if(holds, observation)
         if not observation.crossings:
-            return None
+            return line
+        path = self._candidates[path_index]
         if path_index not in self._spans:
-            path = self._candidates[path_index]
             self._spans[path_index] = crossing_spans(path.points, path.s, observation.crossings)
         seen = observation.perceived
         pedestrians = seen.observations[seen.kinds == "pedestrian"]
         if not self._spans[path_index] or len(pedestrians) == 0:
-            return None
-        return nearest_claimed_m(self._spans[path_index], front_s, pedestrians, speed)
-
-    def _yield_at_stop_line_m(self, observation: Observation, speed: float) -> float | None:
-        """The bumper's distance [m] to the stop line while the ego is short of it and crossing
-        traffic claims a stretch of a candidate path ahead (:meth:`_crossing_traffic_m`), else None:
-        the ego accepts a gap at the stop line, and once past it is committed. Why not yield inside
-        the junction, short of the claimed stretch itself: SUMO's vehicles drive into an ego standing
-        there (left-turners from the lane beside it, the cross street's traffic once the light has
-        turned); yielding there, 200 nominal left turns (150 s) passed 116 instead of 132, with 50
-        collisions instead of 35."""
-        if observation.past_stop_line or self._crossing_traffic_m(observation, speed) is None:
-            return None
-        return observation.distance_to_stop_line_m
-
-    def _crossing_traffic_m(self, observation: Observation, speed: float) -> float | None:
-        """The bumper's distance [m] to the line short of crossing traffic
-        (:func:`crossroads.idc.conflicts.nearest_conflict_m`), the nearest over every candidate
-        path, or None. Why every path: the value network may switch paths on the way; on the nominal
-        left turn (150 s, seed 896230294) a switch to the tighter turn inside the junction moved the
-        line from 9 m ahead, where the ego could stop, to 3 m, where it could not."""
-        seen = observation.perceived
-        rows = np.flatnonzero(seen.kinds != "pedestrian")
-        rows = rows[seen.observations[rows, 2] >= MOVING_MPS]
-        if len(rows) == 0:
-            return None
-        across = np.array([crossing(seen.observations[rows], path.points, path.heading) for path in self._candidates])
-        rows, across = rows[across.any(axis=0)], across[:, across.any(axis=0)]  # (paths, k): who crosses which
-        if len(rows) == 0:
-            return None
-        predicted = predicted_crossing_traffic(observation, seen.observations[rows], seen.rows[rows], CONFLICT_STEPS, self._lines)
+            return line
         ego = observation.ego
-        gaps = []
-        for path, crosses in zip(self._candidates, across, strict=True):
-            if crosses.any():
-                front_s = path.project(float(ego[0]), float(ego[1])).s_m + EGO_LENGTH_M / 2.0
-                gap = nearest_conflict_m(path.points, path.heading, path.s, front_s, speed, predicted[:, crosses])
-                if gap is not None:
-                    gaps.append(gap)
-        return min(gaps) if gaps else None
-
-
-def predicted_crossing_traffic(observation: Observation, others: np.ndarray, rows: np.ndarray, steps: int,
-                               lines: dict[tuple[str, ...], CentreLine | None]) -> np.ndarray:
-    """(steps, k, 6): the perceived participants ``others`` (k, 6) (snapshot ``rows`` (k,)) keeping
-    their speed along their lanes ahead (:mod:`crossroads.sim.lanes_ahead`), or, where the map does
-    not say, turning by their lane's curvature (f_other). ``lines`` caches the joined centre lines
-    by their lanes (they are static)."""
-    snap = observation.participants
-    out = np.repeat(np.asarray(others, np.float64)[None], steps, axis=0)
-    unknown = []
-    for k, row in enumerate(rows):
-        lanes = lanes_ahead(observation.lane_successors, str(snap.lane_id[row]), snap.route[row])
-        if lanes not in lines:
-            lines[lanes] = centre_line(observation.lane_shapes, lanes)
-        line = lines[lanes]
-        if line is None:
-            unknown.append(k)
-            continue
-        out[:, k, :2], out[:, k, 3] = drive_along(line, float(others[k, 0]), float(others[k, 1]), float(others[k, 2]), steps)
-    if unknown:
-        kappa = participant_curvatures(observation.lane_shapes, snap, rows[unknown])
-        out[:, unknown] = predicted_others(others[unknown], kappa, steps)[0]
-    return out
+        front_s = path.project(float(ego[0]), float(ego[1])).s_m + EGO_LENGTH_M / 2.0
+        speed = max(float(ego[2]), 0.0)
+        crosswalk = nearest_claimed_m(self._spans[path_index], front_s, pedestrians, speed)
+        # the braking distance only when needed: stepping f_ego costs ~0.2 ms
+        if crosswalk is None or not can_stand_short_of(crosswalk, float(braking_distance_m(speed, float(ego[7])))):
+            return line
+        return crosswalk if line is None else min(line, crosswalk)
 
 
 def _light_holds(observation: Observation) -> bool:

@@ -36,7 +36,6 @@ from crossroads.sim.abnormal import AbnormalTraffic
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
-from crossroads.sim.lanes_ahead import LaneSuccessors, lane_successors
 from crossroads.sim.other import route_curvature
 from crossroads.sim.region import Region
 from crossroads.sim.signals import Light, apply_start, live_light, read_program
@@ -97,9 +96,6 @@ class Observation:
     # the junction's pedestrian crossings (their areas): static map knowledge too, from which the
     # safety shield tells where the ego's path runs over one (crossroads.idc.crosswalks)
     crossings: tuple[Polygon, ...] = ()
-    # which lanes follow which toward a route's next edge (crossroads.sim.lanes_ahead): static map
-    # knowledge too, from which a controller predicts where crossing traffic drives
-    lane_successors: LaneSuccessors = field(default_factory=dict)
 
     @property
     def past_stop_line(self) -> bool:
@@ -172,7 +168,6 @@ class World:
             for c in a.connections:
                 if c.via_lane and c.via_shape is not None and len(c.via_shape) >= 2:
                     self.lane_shapes[c.via_lane] = c.via_shape
-        self.lane_successors = lane_successors(self.junction.approaches)  # Observation.lane_successors
         self._stop_mid_xy: tuple[float, float] = tuple(self._stop_mid.tolist())
         self._collision_sizes: FloatArray | None = None  # the snapshot lengths _collision_reach is for
         self._collision_reach = np.zeros(0)
@@ -356,7 +351,6 @@ class World:
             perceived=self._perceive(snap, around),
             candidates=self.candidates,
             lane_shapes=self.lane_shapes,
-            lane_successors=self.lane_successors,
             crossings=self._crossing_areas,
         )
 
