@@ -14,6 +14,7 @@ Pure geometry on numpy and shapely; the spans are per path and per episode, the 
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -48,6 +49,11 @@ class CrossingSpan:
     area: Polygon  # the crossing's area, widened by ON_CROSSING_M (who counts as on it)
     centre: LineString  # the path's centre line over the crossing (whose strip a pedestrian claims)
 
+    @functools.cached_property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """(x0, y0, x1, y1) of ``area``, computed once: :func:`claimed` tests against it every step."""
+        return self.area.bounds
+
 
 def crossing_spans(points: np.ndarray, s: np.ndarray, crossings: Sequence[Polygon]) -> tuple[CrossingSpan, ...]:
     """The spans of a path (``points`` (n, 2) at arc lengths ``s`` (n,)) over the ``crossings``' areas,
@@ -77,7 +83,7 @@ def claimed(span: CrossingSpan, pedestrians: np.ndarray, horizon_s: float) -> bo
     ``horizon_s`` (the ego's :func:`clearing_time_s`). Someone on the crossing but walking away from
     the path, or on its far part walking too slowly to reach the path in that time, does not."""
     peds = np.asarray(pedestrians, np.float64).reshape(-1, 6)
-    x0, y0, x1, y1 = span.area.bounds  # a cheap test first: shapely costs microseconds a point
+    x0, y0, x1, y1 = span.bounds  # a cheap test first: shapely costs microseconds a point
     peds = peds[(peds[:, 0] >= x0) & (peds[:, 0] <= x1) & (peds[:, 1] >= y0) & (peds[:, 1] <= y1)]
     for px, py, v, phi, _, _ in peds:
         here = Point(px, py)

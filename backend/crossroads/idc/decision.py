@@ -101,9 +101,11 @@ class IdcController:
         path = self._candidates[path_index]
         if path_index not in self._spans:
             self._spans[path_index] = crossing_spans(path.points, path.s, observation.crossings)
+        if not self._spans[path_index]:
+            return line
         seen = observation.perceived
         pedestrians = seen.observations[seen.kinds == "pedestrian"]
-        if not self._spans[path_index] or len(pedestrians) == 0:
+        if len(pedestrians) == 0:
             return line
         ego = observation.ego
         front_s = path.project(float(ego[0]), float(ego[1])).s_m + EGO_LENGTH_M / 2.0
