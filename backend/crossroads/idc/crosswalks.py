@@ -101,17 +101,29 @@ def claimed(span: CrossingSpan, pedestrians: np.ndarray, horizon_s: float) -> bo
     return False
 
 
+def claims_ahead(span: CrossingSpan, front_s_m: float, pedestrians: np.ndarray, speed_mps: float) -> bool:
+    """Whether someone of ``pedestrians`` claims ``span`` against an ego whose front bumper is at arc
+    length ``front_s_m``, at ``speed_mps``: :func:`claimed` within the time the ego needs to get its
+    rear past the crossing (the front must leave it by the ego's length)."""
+    return claimed(span, pedestrians, clearing_time_s(span.s_out_m - front_s_m + EGO_LENGTH_M, speed_mps))
+
+
+def nearest_claimed(spans: Sequence[CrossingSpan], front_s_m: float, pedestrians: np.ndarray,
+                    speed_mps: float) -> CrossingSpan | None:
+    """The nearest crossing ahead on the path (``spans`` of it, the bumper at arc length
+    ``front_s_m``, the ego at ``speed_mps``) that a pedestrian claims, or None. A crossing the bumper
+    is on or past is not ahead: the ego drives on over it."""
+    for span in spans:
+        if span.s_in_m - front_s_m >= 0.0 and claims_ahead(span, front_s_m, pedestrians, speed_mps):
+            return span
+    return None
+
+
 def nearest_claimed_m(spans: Sequence[CrossingSpan], front_s_m: float, pedestrians: np.ndarray,
                       speed_mps: float) -> float | None:
-    """The front bumper's distance [m] to the nearest crossing ahead on the path (``spans`` of it, the
-    bumper at arc length ``front_s_m``, the ego at ``speed_mps``) that a pedestrian claims, or None.
-    A crossing the bumper is on or past is not ahead: the ego drives on over it."""
-    for span in spans:
-        gap = span.s_in_m - front_s_m
-        # the front must get past the crossing by the ego's length for its rear to leave it
-        if gap >= 0.0 and claimed(span, pedestrians, clearing_time_s(span.s_out_m - front_s_m + EGO_LENGTH_M, speed_mps)):
-            return gap
-    return None
+    """The front bumper's distance [m] to :func:`nearest_claimed`, or None."""
+    span = nearest_claimed(spans, front_s_m, pedestrians, speed_mps)
+    return None if span is None else span.s_in_m - front_s_m
 
 
 def can_stand_short_of(gap_m: float, stopping_m: float) -> bool:

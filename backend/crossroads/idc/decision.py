@@ -20,7 +20,7 @@ from torch import nn
 
 from crossroads.constants import EGO_LENGTH_M
 from crossroads.idc.controller import Decision, SpeedMode
-from crossroads.idc.crosswalks import CrossingSpan, can_stand_short_of, crossing_spans, nearest_claimed_m
+from crossroads.idc.crosswalks import CrossingSpan, can_stand_short_of, claims_ahead, crossing_spans, nearest_claimed
 from crossroads.idc.lights import light_holds_at_line, speed_mode_from
 from crossroads.idc.observed import observed_others
 from crossroads.idc.shield import shield_action
@@ -28,6 +28,19 @@ from crossroads.idc.state import build_states, select_others
 from crossroads.planning import CandidatePath
 from crossroads.sim.ego import braking_distance_m
 from crossroads.sim.world import Observation
+
+
+# [0.1 s] the crossing the shield braked for stays its line until no one has claimed it for this
+# many steps in a row, and only while the ego's light is green (:meth:`IdcController._crosswalk`).
+# Why hold it: the line used to last only while full braking could still stand 0.5 m short; the
+# policy accelerated on every step the shield let it (jerk-limited braking lost ~0.45 m/s² a
+# step), a claim flickered off for a step on the pedestrians' noise, the ego slid past the point of
+# standing short, and braking for the pedestrians stopped it 1.4–5 m onto the exit crosswalk, where
+# they walked into it (6 of the 35 collisions of 200 nominal left turns, 150 s timeout; seed
+# 896230294 at 60 s). Why green
+# only: held inside the junction past its green, the ego was hit by the cross traffic SUMO lets go
+# (4 more collisions at 150 s, seeds 1092899071, 154812432). docs/measurements/safety-shield.md
+HELD_CROSSING_RELEASE_STEPS = 10
 
 
 class IdcController:
@@ -43,6 +56,8 @@ class IdcController:
         self.shield = shield
         self._shield_braked = False  # the shield's verdict last step: it releases with a margin (idc.shield)
         self._spans: dict[int, tuple[CrossingSpan, ...]] = {}  # per candidate: its crossings (idc.crosswalks)
+        self._held_crossing: tuple[int, CrossingSpan] | None = None  # (path, crossing) the shield braked for
+        self._unclaimed_steps = 0  # steps in a row no one has claimed the held crossing
         # networks built with the path preview read 120-value states (crossroads.idc.state)
         self.preview = bool(getattr(policy, "preview", False))
 
@@ -58,6 +73,8 @@ class IdcController:
         self._candidates = tuple(candidates)
         self._shield_braked = False
         self._spans = {}
+        self._held_crossing = None
+        self._unclaimed_steps = 0
 
     def speed_mode(self, observation: Observation) -> SpeedMode:
         return speed_mode_from(_light_holds(observation), observation.front_vehicle_stopped_s)
@@ -84,37 +101,62 @@ class IdcController:
         best, action, values = self.decide_states(states)
         if kappa is None:
             return Decision(action, best, mode, values)
-        verdict = shield_action(observation.ego, others, kappa, action, line_m=self._shield_line(holds, observation, best),
+        line_m, crossing = self._shield_line(holds, observation, best)
+        verdict = shield_action(observation.ego, others, kappa, action, line_m=line_m,
                                 before_line=not observation.past_stop_line, braked_last_step=self._shield_braked,
                                 exit_heading=float(self._candidates[best].heading[-1]))
         self._shield_braked = verdict.braking
+        if verdict.braking and crossing is not None:
+            if self._held_crossing is None or self._held_crossing[1] is not crossing:
+                self._unclaimed_steps = 0
+            self._held_crossing = (best, crossing)
         return Decision(verdict.action, best, mode, values, shield_braking=verdict.braking)
 
-    def _shield_line(self, holds: bool, observation: Observation, path_index: int) -> float | None:
-        """The line the shield holds the ego short of: the nearer of the stop line while the light
-        holds the ego (:func:`_line_if`) and a crossing a pedestrian claims on path ``path_index``
-        while full braking can still stand short of it (:mod:`crossroads.idc.crosswalks`), as the
-        front bumper's distance [m]."""
+    def _shield_line(self, holds: bool, observation: Observation, path_index: int) -> tuple[float | None, CrossingSpan | None]:
+        """The line the shield holds the ego short of, as the front bumper's distance [m]: the nearer
+        of the stop line while the light holds the ego (:func:`_line_if`) and a crossing a
+        pedestrian claims on path ``path_index`` (:meth:`_crosswalk`); with the crossing's span when
+        the crossing is the nearer."""
         line = _line_if(holds, observation)
+        crossing = self._crosswalk(observation, path_index)
+        if crossing is None or (line is not None and line <= crossing[0]):
+            return line, None
+        return crossing
+
+    def _crosswalk(self, observation: Observation, path_index: int) -> tuple[float, CrossingSpan] | None:
+        """The claimed crossing on path ``path_index`` the shield holds the ego short of, and the
+        bumper's distance to it [m]: the one it braked for while someone still claims it
+        (:data:`HELD_CROSSING_RELEASE_STEPS`), else the nearest claimed one ahead while full braking
+        can still stand short of it (:mod:`crossroads.idc.crosswalks`)."""
         if not observation.crossings:
-            return line
+            return None
         path = self._candidates[path_index]
         if path_index not in self._spans:
             self._spans[path_index] = crossing_spans(path.points, path.s, observation.crossings)
         if not self._spans[path_index]:
-            return line
+            return None
         seen = observation.perceived
         pedestrians = seen.observations[seen.kinds == "pedestrian"]
-        if len(pedestrians) == 0:
-            return line
+        if len(pedestrians) == 0 and self._held_crossing is None:
+            return None  # nobody to claim a crossing: spare the projection
         ego = observation.ego
         front_s = path.project(float(ego[0]), float(ego[1])).s_m + EGO_LENGTH_M / 2.0
         speed = max(float(ego[2]), 0.0)
-        crosswalk = nearest_claimed_m(self._spans[path_index], front_s, pedestrians, speed)
+        held = self._held_crossing
+        if held is not None and held[0] == path_index and observation.light.light == "green":
+            span = held[1]
+            self._unclaimed_steps = 0 if claims_ahead(span, front_s, pedestrians, speed) else self._unclaimed_steps + 1
+            if self._unclaimed_steps < HELD_CROSSING_RELEASE_STEPS:
+                return span.s_in_m - front_s, span
+        self._held_crossing = None
+        span = nearest_claimed(self._spans[path_index], front_s, pedestrians, speed)
+        if span is None:
+            return None
+        gap = span.s_in_m - front_s
         # the braking distance only when needed: stepping f_ego costs ~0.2 ms
-        if crosswalk is None or not can_stand_short_of(crosswalk, float(braking_distance_m(speed, float(ego[7])))):
-            return line
-        return crosswalk if line is None else min(line, crosswalk)
+        if not can_stand_short_of(gap, float(braking_distance_m(speed, float(ego[7])))):
+            return None
+        return gap, span
 
 
 def _light_holds(observation: Observation) -> bool:
