@@ -149,6 +149,29 @@ def test_a_timeout_behind_a_standing_queue_says_how_long_it_stood() -> None:
     assert obs.front_vehicle_stopped_s > 30.0
 
 
+def test_no_follower_is_left_too_close_behind_the_ego_as_it_enters() -> None:
+    """Nominal left turn, seed 1705482282: a car 6.1 m behind the ego's start (centres) at 8.3 m/s
+    rear-ended it 0.1 s into the episode. A follower within its own 1 s of driving (and the 6 m) is
+    removed at entry, so no episode starts in a crash from behind."""
+    from crossroads.evaluation.scenario import load_scenario, to_world_config
+    from crossroads.sim.world import SPAWN_CLEAR_BEHIND_S, SPAWN_CLEARANCE_M
+    from support import REPO_ROOT
+
+    path = REPO_ROOT / "scenarios" / "nominal" / "c_three_lane-left.yaml"
+    with World(to_world_config(load_scenario(path), path.parent)) as world:
+        obs = world.reset(1705482282)
+        snap = obs.participants
+        heading = float(obs.ego[4])
+        dx, dy = snap.x - obs.ego[0], snap.y - obs.ego[1]
+        along = dx * math.cos(heading) + dy * math.sin(heading)
+        across = -dx * math.sin(heading) + dy * math.cos(heading)
+        same_lane_behind = (along < 0.0) & (np.abs(across) < 1.0)
+        assert np.all(-along[same_lane_behind] > SPAWN_CLEARANCE_M + SPAWN_CLEAR_BEHIND_S * snap.speed[same_lane_behind] - 1.0)
+        for _ in range(20):  # 2 s on at the start speed: nobody drives into it
+            obs, outcome = world.step(np.zeros(2))
+            assert outcome is None, outcome
+
+
 def test_abnormal_vehicles_of_the_paper_cases_show_in_the_world() -> None:
     """Over-speeding (+50 %) vehicles exceed 30 km/h by ~50 %; rounding vehicles are flagged."""
     from crossroads.evaluation.scenario import load_scenario, to_world_config

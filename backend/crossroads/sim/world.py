@@ -49,6 +49,11 @@ OUTCOMES: tuple[OutcomeKind, ...] = ("passed", "collision", "red_light", "off_ro
 OFF_ROAD_TOLERANCE_M = 0.5  # [m] a corner may overhang the drivable area this much (kerb, paint)
 SPAWN_CLEARANCE_M = 6.0  # [m] participants this close to the ego's start are removed at entry
 SPAWN_CLEAR_AHEAD_S = 3.0  # [s] ...and those within this much driving time ahead on its lane
+# [s] ...and followers on its lane within this much of their own driving time behind it. Why: a car
+# 6.1 m behind (centres) at 8.3 m/s, just outside SPAWN_CLEARANCE_M, rear-ended the ego 0.1 s into
+# the episode (60 s nominal left, seed 1705482282): inserted 1.2 m ahead of it, the ego left SUMO's
+# driver no time to brake
+SPAWN_CLEAR_BEHIND_S = 1.0
 FRONT_CORRIDOR_HALF_WIDTH_M = 1.75  # [m] "in front of the ego": within half a lane of its axis
 FRONT_LOOKAHEAD_M = 30.0  # [m] how far ahead the congestion check looks for a front vehicle
 FRONT_HEADING_TOLERANCE_RAD = math.pi / 4  # [rad] a front vehicle heads within this of the ego
@@ -237,7 +242,8 @@ class World:
     def _clear_spawn(self, x: float, y: float, heading: float, speed: float) -> None:
         """Remove whoever is in the ego's way as it enters, so no episode starts in a crash.
 
-        The cleared box runs along the start lane from behind the ego to as far as it covers in
+        The cleared box runs along the start lane from behind the ego (SPAWN_CLEARANCE_M, and a
+        participant's SPAWN_CLEAR_BEHIND_S of driving more) to as far as the ego covers in
         SPAWN_CLEAR_AHEAD_S at its start speed, across the lane and half of each neighbour.
         """
         snap = self.session.snapshot()
@@ -245,7 +251,8 @@ class World:
         along = dx * math.cos(heading) + dy * math.sin(heading)
         across = -dx * math.sin(heading) + dy * math.cos(heading)
         ahead = SPAWN_CLEARANCE_M + SPAWN_CLEAR_AHEAD_S * speed
-        close = (along > -SPAWN_CLEARANCE_M) & (along < ahead) & (
+        behind = SPAWN_CLEARANCE_M + SPAWN_CLEAR_BEHIND_S * snap.speed  # per participant: its own headway
+        close = (along > -behind) & (along < ahead) & (
             np.abs(across) < self.start_lane.width_m)
         for pid in snap.ids[close]:
             self.session.remove(str(pid))
