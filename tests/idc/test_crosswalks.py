@@ -15,7 +15,7 @@ from crossroads.idc.crosswalks import (
     clearing_time_s,
     can_stand_short_of,
     crossing_spans,
-    nearest_claimed_m,
+    nearest_claimed,
 )
 from crossroads.network import catalogue
 from crossroads.sim.config import WorldConfig
@@ -59,15 +59,15 @@ def test_the_line_is_the_nearest_claimed_crossing_ahead_if_the_ego_can_stand_sho
     spans = crossing_spans(PATH, S, [CROSSING])
     on_it = _ped(22.0, 0.0, 1.3, np.pi / 2)
     gap = spans[0].s_in_m - 5.0
-    assert nearest_claimed_m(spans, 5.0, on_it, speed_mps=5.0) == pytest.approx(gap)
+    assert nearest_claimed(spans, 5.0, on_it, speed_mps=5.0) is spans[0] and gap > 0.0
     assert can_stand_short_of(gap, stopping_m=3.0)
     assert not can_stand_short_of(gap, stopping_m=gap - STOP_LINE_GAP_M + 0.1)  # too late
-    assert nearest_claimed_m(spans, 5.0, np.zeros((0, 6)), speed_mps=5.0) is None  # nobody on it
-    assert nearest_claimed_m(spans, spans[0].s_in_m + 0.5, on_it, speed_mps=0.0) is None  # already on it
+    assert nearest_claimed(spans, 5.0, np.zeros((0, 6)), speed_mps=5.0) is None  # nobody on it
+    assert nearest_claimed(spans, spans[0].s_in_m + 0.5, on_it, speed_mps=0.0) is None  # already on it
     # someone 6 m out walking in at 1 m/s: in the way of an ego crawling up, not of one at 8 m/s
     walking_in = _ped(22.0, -6.0, 1.0, np.pi / 2)
-    assert nearest_claimed_m(spans, 15.0, walking_in, speed_mps=0.5) is not None
-    assert nearest_claimed_m(spans, 5.0, walking_in, speed_mps=8.0) is None
+    assert nearest_claimed(spans, 15.0, walking_in, speed_mps=0.5) is not None
+    assert nearest_claimed(spans, 5.0, walking_in, speed_mps=8.0) is None
 
 
 def test_the_nominal_left_turn_runs_over_the_crossings_of_its_entry_and_exit() -> None:

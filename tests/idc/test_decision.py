@@ -3,21 +3,24 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterator
+from typing import NamedTuple
 
 import numpy as np
 import pytest
 import torch
 
 from crossroads.constants import EGO_LENGTH_M, JERK_MAX, STEER_RATE_MAX, STOP_LINE_GAP_M
-from crossroads.idc.crosswalks import crossing_spans
+from crossroads.idc.crosswalks import CrossingSpan, crossing_spans
 from crossroads.idc.decision import HELD_CROSSING_RELEASE_STEPS, IdcController
 from crossroads.idc.shield import HOLD_WHEEL
 from crossroads.idc.state import build_states, select_others
 from crossroads.network import catalogue
+from crossroads.planning import CandidatePath
 from crossroads.rl.networks import make_networks
 from crossroads.sim.config import SignalStart, WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC
-from crossroads.sim.world import Perceived, World
+from crossroads.sim.world import Observation, Perceived, World
 from support import REPO_ROOT
 
 
@@ -94,10 +97,20 @@ def test_with_the_shield_a_shipped_model_stands_short_of_a_red_line(model: str) 
     assert STOP_LINE_GAP_M - 0.05 < min(gaps_standing_on_red) and max(gaps_standing_on_red) < STOP_LINE_GAP_M + 0.3
 
 
-def test_the_shields_line_is_a_crossing_a_pedestrian_claims_ahead() -> None:
-    """The shield holds the ego short of a crossing a pedestrian claims (idc.crosswalks): the line it
-    gets is the front bumper's distance to the exit crossing while someone stands on it in the ego's
-    path, and none when nobody does or when the light's line is nearer."""
+class ExitCrossingScene(NamedTuple):
+    """The nominal left turn's start on an empty c_three_lane, a shielded APG reset to it, and a
+    pedestrian standing on the exit crossing in the ego's path."""
+
+    controller: IdcController
+    obs: Observation  # the start, nobody perceived
+    path: CandidatePath  # candidate 0
+    entry: CrossingSpan
+    exit: CrossingSpan
+    seen: Perceived  # the pedestrian on the exit crossing
+
+
+@pytest.fixture
+def exit_crossing() -> Iterator[ExitCrossingScene]:
     controller = IdcController.from_checkpoint(REPO_ROOT / "models" / "apg.pt", shield=True)
     config = WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", demand=NO_TRAFFIC, warmup_s=1.0)
     with World(config) as world:
@@ -107,45 +120,45 @@ def test_the_shields_line_is_a_crossing_a_pedestrian_claims_ahead() -> None:
         entry, exit_ = crossing_spans(path.points, path.s, obs.crossings)
         on_exit = exit_.centre.interpolate(0.5, normalized=True)
         pedestrian = np.array([[on_exit.x, on_exit.y, 0.0, 0.0, 0.3, 0.5]])
-        seen = Perceived(np.array([0]), np.array(["pedestrian"]), pedestrian)
-        front_s = path.project(float(obs.ego[0]), float(obs.ego[1])).s_m + EGO_LENGTH_M / 2.0
-        claimed_obs = dataclasses.replace(obs, perceived=seen)
-        line, span = controller._shield_line(False, claimed_obs, 0)
-        assert line == pytest.approx(exit_.s_in_m - front_s) and span == exit_
-        assert controller._shield_line(False, obs, 0) == (None, None)  # nobody on it
-        # a held stop line nearer than the crossing wins
-        line, span = controller._shield_line(True, claimed_obs, 0)
-        assert line == pytest.approx(obs.distance_to_stop_line_m) and span is None
-        assert entry.s_in_m < exit_.s_in_m
+        yield ExitCrossingScene(controller, obs, path, entry, exit_,
+                                Perceived(np.array([0]), np.array(["pedestrian"]), pedestrian))
 
 
-def test_a_crossing_the_shield_braked_for_stays_its_line_while_claimed_and_green() -> None:
+def test_the_shields_line_is_a_crossing_a_pedestrian_claims_ahead(exit_crossing: ExitCrossingScene) -> None:
+    """The shield holds the ego short of a crossing a pedestrian claims (idc.crosswalks): the line it
+    gets is the front bumper's distance to the exit crossing while someone stands on it in the ego's
+    path, and none when nobody does or when the light's line is nearer."""
+    controller, obs, path, entry, exit_, seen = exit_crossing
+    front_s = path.project(float(obs.ego[0]), float(obs.ego[1])).s_m + EGO_LENGTH_M / 2.0
+    claimed_obs = dataclasses.replace(obs, perceived=seen)
+    line, span = controller._shield_line(False, claimed_obs, 0)
+    assert line == pytest.approx(exit_.s_in_m - front_s) and span == exit_
+    assert controller._shield_line(False, obs, 0) == (None, None)  # nobody on it
+    # a held stop line nearer than the crossing wins
+    line, span = controller._shield_line(True, claimed_obs, 0)
+    assert line == pytest.approx(obs.distance_to_stop_line_m) and span is None
+    assert entry.s_in_m < exit_.s_in_m
+
+
+def test_a_crossing_the_shield_braked_for_stays_its_line_while_claimed_and_green(exit_crossing: ExitCrossingScene) -> None:
     """Once the shield has braked for a claimed crossing, the crossing stays its line even where full
     braking can no longer stand short of it (the ego then stops just onto it, not metres in), until
     nobody has claimed it for HELD_CROSSING_RELEASE_STEPS steps or the light is no longer green."""
-    controller = IdcController.from_checkpoint(REPO_ROOT / "models" / "apg.pt", shield=True)
-    config = WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", demand=NO_TRAFFIC, warmup_s=1.0)
-    with World(config) as world:
-        obs = world.reset(0)
-        controller.reset(world.candidates)
-        path = world.candidates[0]
-        exit_ = crossing_spans(path.points, path.s, obs.crossings)[-1]
-        on_exit = exit_.centre.interpolate(0.5, normalized=True)
-        seen = Perceived(np.array([0]), np.array(["pedestrian"]), np.array([[on_exit.x, on_exit.y, 0.0, 0.0, 0.3, 0.5]]))
-        nobody = Perceived(np.zeros(0, int), np.zeros(0, str), np.zeros((0, 6)))
-        # the ego at 6 m/s with its front bumper 1 m short of the exit crossing: too late to stand short
-        i = int(np.searchsorted(path.s, exit_.s_in_m - 1.0 - EGO_LENGTH_M / 2.0))
-        ego = np.array([path.points[i, 0], path.points[i, 1], 6.0, 0.0, path.heading[i], 0.0, 0.0, 0.0])
-        late = dataclasses.replace(obs, ego=ego, perceived=seen)
-        assert controller._shield_line(False, late, 0) == (None, None)
-        controller._held_crossing = (0, exit_)  # what decide() keeps when the shield brakes for the crossing
-        line, span = controller._shield_line(False, late, 0)
-        assert span is exit_ and line == pytest.approx(exit_.s_in_m - path.s[i] - EGO_LENGTH_M / 2.0)
-        unclaimed = dataclasses.replace(late, perceived=nobody)
-        for _ in range(HELD_CROSSING_RELEASE_STEPS - 1):  # a claim flickering off keeps the line
-            assert controller._shield_line(False, unclaimed, 0)[1] is exit_
-        assert controller._shield_line(False, unclaimed, 0) == (None, None)  # released
-        controller._held_crossing = (0, exit_)
-        not_green = dataclasses.replace(late, light=dataclasses.replace(late.light, light="yellow"))
-        assert controller._shield_line(False, not_green, 0) == (None, None)  # clear the junction instead
-        assert controller._held_crossing is None
+    controller, obs, path, _, exit_, seen = exit_crossing
+    nobody = Perceived(np.zeros(0, int), np.zeros(0, str), np.zeros((0, 6)))
+    # the ego at 6 m/s with its front bumper 1 m short of the exit crossing: too late to stand short
+    i = int(np.searchsorted(path.s, exit_.s_in_m - 1.0 - EGO_LENGTH_M / 2.0))
+    ego = np.array([path.points[i, 0], path.points[i, 1], 6.0, 0.0, path.heading[i], 0.0, 0.0, 0.0])
+    late = dataclasses.replace(obs, ego=ego, perceived=seen)
+    assert controller._shield_line(False, late, 0) == (None, None)
+    controller._held_crossing = (0, exit_)  # what decide() keeps when the shield brakes for the crossing
+    line, span = controller._shield_line(False, late, 0)
+    assert span is exit_ and line == pytest.approx(exit_.s_in_m - path.s[i] - EGO_LENGTH_M / 2.0)
+    unclaimed = dataclasses.replace(late, perceived=nobody)
+    for _ in range(HELD_CROSSING_RELEASE_STEPS - 1):  # a claim flickering off keeps the line
+        assert controller._shield_line(False, unclaimed, 0)[1] is exit_
+    assert controller._shield_line(False, unclaimed, 0) == (None, None)  # released
+    controller._held_crossing = (0, exit_)
+    not_green = dataclasses.replace(late, light=dataclasses.replace(late.light, light="yellow"))
+    assert controller._shield_line(False, not_green, 0) == (None, None)  # clear the junction instead
+    assert controller._held_crossing is None

@@ -119,13 +119,6 @@ def nearest_claimed(spans: Sequence[CrossingSpan], front_s_m: float, pedestrians
     return None
 
 
-def nearest_claimed_m(spans: Sequence[CrossingSpan], front_s_m: float, pedestrians: np.ndarray,
-                      speed_mps: float) -> float | None:
-    """The front bumper's distance [m] to :func:`nearest_claimed`, or None."""
-    span = nearest_claimed(spans, front_s_m, pedestrians, speed_mps)
-    return None if span is None else span.s_in_m - front_s_m
-
-
 def can_stand_short_of(gap_m: float, stopping_m: float) -> bool:
     """Whether full braking (``stopping_m``) stands the ego ``STOP_LINE_GAP_M`` short of a crossing
     ``gap_m`` ahead. Too late, the shield does not hold it short: stopping halfway onto the crossing

@@ -35,11 +35,11 @@ from crossroads.sim.world import Observation
 # Why hold it: the line used to last only while full braking could still stand 0.5 m short; the
 # policy accelerated on every step the shield let it (jerk-limited braking lost ~0.45 m/s² a
 # step), a claim flickered off for a step on the pedestrians' noise, the ego slid past the point of
-# standing short, and braking for the pedestrians stopped it 1.4–5 m onto the exit crosswalk, where
-# they walked into it (6 of the 35 collisions of 200 nominal left turns, 150 s timeout; seed
-# 896230294 at 60 s). Why green
-# only: held inside the junction past its green, the ego was hit by the cross traffic SUMO lets go
-# (4 more collisions at 150 s, seeds 1092899071, 154812432). docs/measurements/safety-shield.md
+# standing short, and braking for the pedestrians stopped it 1.4–5.1 m onto the exit crosswalk,
+# where they walked into it (6 of the 35 collisions of 200 nominal left turns, 150 s timeout; seed
+# 896230294 at 60 s). Why green only: held inside the junction past its green, the ego was hit by
+# the cross traffic SUMO lets go (4 more collisions at 150 s, seeds 1092899071, 154812432).
+# docs/measurements/safety-shield.md, "Session 23"
 HELD_CROSSING_RELEASE_STEPS = 10
 
 
