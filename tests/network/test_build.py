@@ -11,14 +11,18 @@ import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
+from shapely.geometry import LineString, Point
 
 from crossroads.network import build as build_mod
 from crossroads.network.build import (
     NetworkBuildError, build_network, cache_key, read_tls_links,
 )
 from crossroads.network.catalogue import list_intersections, load_spec
+from crossroads.network.junction import read_junction
 from crossroads.network.spec import IntersectionSpec
+from crossroads.planning.routes import build_candidate
 
 SIX = ["a_single_lane", "b_two_lane", "c_three_lane", "d_irregular_skewed", "e_irregular_oblique",
        "f_irregular_wide"]
@@ -221,3 +225,34 @@ def test_oblique_straight_agrees_with_sumo(tmp_path: Path) -> None:
     # 30° off straight: both we and SUMO (< 44°) call it straight, so this builds.
     net = build_network(spec, tmp_path / "skew")
     assert net.is_file()
+
+
+@pytest.mark.parametrize("name", SIX)
+def test_internal_lanes_follow_the_candidate_paths(nets: dict[str, Path], name: str) -> None:
+    """Every car connection's internal lanes (both parts where SUMO splits a turn at an internal
+    junction) run along the paper's candidate path between its lanes: SUMO's traffic turns where
+    the ego does, and its junction model sees the ego where it is."""
+    root = ET.parse(nets[name]).getroot()
+    shapes = {lane.get("id"): _points(lane.get("shape", "")) for lane in root.iter("lane")}
+    via_next = {(c.get("from"), c.get("fromLane")): c.get("via") for c in root.iter("connection")
+                if c.get("from", "").startswith(":") and c.get("via")}
+    junction = read_junction(nets[name])
+    checked = 0
+    for c in root.iter("connection"):
+        frm, to, via = c.get("from", ""), c.get("to", ""), c.get("via")
+        entrance, exit_ = f"{frm}_{c.get('fromLane')}", f"{to}_{c.get('toLane')}"
+        if frm.startswith(":") or not via or entrance not in junction.lanes or exit_ not in junction.lanes:
+            continue  # internal links, crossings and walking areas, bike lanes
+        chain = [via]
+        while (nxt := via_next.get(tuple(chain[-1].rsplit("_", 1)))) is not None:
+            chain.append(nxt)
+        sumo = LineString(np.vstack([shapes[lane] for lane in chain]))
+        path = build_candidate("c", "", frm, junction.lanes[entrance], junction.lanes[exit_])
+        curve = path.points[(path.s >= path.s_stop_line) & (path.s <= path.s_exit)]
+        assert max(sumo.distance(Point(p)) for p in curve) < 0.05, (entrance, exit_, chain)
+        checked += 1
+    assert checked >= 8
+
+
+def _points(shape: str) -> np.ndarray:
+    return np.array([[float(v) for v in xy.split(",")[:2]] for xy in shape.split()])

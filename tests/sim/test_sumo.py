@@ -6,9 +6,11 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import libsumo
 import numpy as np
 import pytest
 
+from crossroads.geometry import point_at
 from crossroads.network import catalogue
 from crossroads.network.junction import read_junction
 from crossroads.sim.sumo import EGO_LENGTH_M, EGO_WIDTH_M, SumoError, SumoSession, active_session
@@ -141,6 +143,54 @@ def test_ego_footprint_exact_pose_and_followers_brake(tmp_path: Path) -> None:
         assert snap.speed[i] < 0.1  # stopped behind the ego
         gap = math.hypot(snap.x[i] - cmd[0], snap.y[i] - cmd[1]) - 0.5 * (EGO_LENGTH_M + snap.length[i])
         assert 0.5 < gap < 6.0
+
+
+def test_an_ego_sumo_took_off_its_road_is_mapped_back_and_followers_still_stop(tmp_path: Path) -> None:
+    """Placed more than half a lane and half its width off every lane of its route, SUMO takes the
+    ego off its road network, where its followers no longer see it. The next placement maps it onto
+    its route's lane (snapped to the centre), so a follower stops behind it; once its pose is back
+    within the lane, it is placed exactly again."""
+    net = catalogue.build(NET)
+    j = read_junction(net)
+    south = j.default_approach()
+    lane = south.entrance_lanes[0]
+    conn = next(c for c in south.connections if c.from_lane == lane.id)
+    exit_edge = conn.to_lane.rsplit("_", 1)[0]
+    routes = tmp_path / "follower.rou.xml"
+    routes.write_text(
+        f'<routes><vType id="car" vClass="passenger" sigma="0"/>'
+        f'<trip id="f0" type="car" depart="0" from="{south.incoming_edge}" to="{exit_edge}" '
+        f'departLane="{lane.index}" departSpeed="max"/></routes>')
+    h = lane.start_heading
+    x, y = point_at(lane.centerline, 0.6 * lane.length_m)
+    right = (math.cos(h - math.pi / 2), math.sin(h - math.pi / 2))
+    off = 0.5 * (lane.width_m + EGO_WIDTH_M) + 0.5  # beyond what SUMO keeps on the lane
+
+    def pose(offset: float) -> tuple[float, float, float]:
+        return float(x + offset * right[0]), float(y + offset * right[1]), h
+
+    with SumoSession().start(net, [routes], seed=0) as sim:
+        sim.add_ego("ego", [south.incoming_edge, exit_edge], depart_lane=lane.index)
+        sim.move_ego("ego", *pose(0.0), 0.0)
+        sim.step()
+        lanes = []
+        for _ in range(300):
+            sim.move_ego("ego", *pose(off), 0.0)
+            sim.step()
+            lanes.append(libsumo.vehicle.getLaneID("ego"))
+        assert lanes[0] == ""  # SUMO took it off: the exact pose lies off every lane
+        assert set(lanes[1:]) == {lane.id}  # and from then on it is mapped onto the lane
+        snap = sim.snapshot()
+        i = snap.index("f0")
+        assert snap.speed[i] < 0.1  # stopped behind the ego
+        gap = math.hypot(snap.x[i] - x, snap.y[i] - y) - 0.5 * (EGO_LENGTH_M + snap.length[i])
+        assert 0.5 < gap < 6.0
+        ex, ey, _, _ = sim.vehicle_pose("ego")
+        assert math.hypot(ex - x, ey - y) < 0.01  # on the centre line
+        sim.move_ego("ego", *pose(0.3), 0.0)  # back within the lane: placed exactly again
+        sim.step()
+        ex, ey, _, _ = sim.vehicle_pose("ego")
+        assert math.hypot(ex - pose(0.3)[0], ey - pose(0.3)[1]) < 0.01
 
 
 def test_paper_demand_populates_the_snapshot(tmp_path: Path) -> None:

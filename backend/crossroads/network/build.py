@@ -18,6 +18,13 @@ crossing, compute the state strings, and pass 2 (``netconvert -s pass1.net.xml -
 replaces the program. The build then checks that SUMO's own turn classification (``dir``) agrees
 with the spec's and that link indices did not move between the passes.
 
+Pass 2 also gives every car connection the shape of the paper's candidate path between its lanes
+(``shapes.con.xml``: the cubic Bezier of :func:`crossroads.planning.routes.build_candidate` with the
+paper's ρ, drawn on pass 1's lanes), so SUMO's internal lanes run where the ego's candidate paths
+run. Why: netconvert's own internal lanes were up to 2.5 m off the Bezier paths into the two inner
+exit lanes of the nominal left turn (docs/measurements/ego-in-sumo.md), so SUMO's junction model
+placed the ego, its followers and its foes where the ego was not.
+
 Cache: a build lives in ``<cache root>/<key>/`` where the key hashes the canonical spec JSON,
 :data:`BUILD_VERSION` and the SUMO version. The cache root is ``$CROSSROADS_CACHE_DIR`` or
 ``~/.cache/crossroads/nets``. Builds happen in a temporary sibling directory renamed into place
@@ -40,9 +47,11 @@ from functools import lru_cache
 from importlib import metadata
 from pathlib import Path
 
+from crossroads.network.junction import read_junction
 from crossroads.network.spec import ApproachSpec, IntersectionSpec
+from crossroads.planning.routes import build_candidate
 
-BUILD_VERSION = "1"  # bump whenever the written XML or the netconvert options change
+BUILD_VERSION = "2"  # bump whenever the written XML or the netconvert options change
 JUNCTION_ID = "C"  # the junction's node id, also the traffic light's id
 NET_FILE = "net.net.xml"
 BUILD_INFO_FILE = "build.json"
@@ -177,10 +186,11 @@ def _build_into(spec: IntersectionSpec, work: Path, key: str) -> None:
     )
     links = _tls_links(spec, first)
     _write_xml(_program_xml(spec, links), work / "program.tll.xml")
+    _write_xml(_connection_shapes_xml(spec, first), work / "shapes.con.xml")
 
     final = work / NET_FILE
-    _netconvert(["--sumo-net-file", first, "--tllogic-files", work / "program.tll.xml", "--output-file", final],
-                log, spec.name)
+    _netconvert(["--sumo-net-file", first, "--tllogic-files", work / "program.tll.xml",
+                 "--connection-files", work / "shapes.con.xml", "--output-file", final], log, spec.name)
     again = _tls_links(spec, final)
     if [(k.link_index, k.from_lane, k.to_lane) for k in again] != [(k.link_index, k.from_lane, k.to_lane) for k in links]:
         raise NetworkBuildError(f"{spec.name}: traffic-light link indices changed between the two netconvert passes")
@@ -332,6 +342,29 @@ def _connections_xml(spec: IntersectionSpec) -> ET.Element:
     for a in spec.approaches:
         if a.crossing:
             ET.SubElement(root, "crossing", node=JUNCTION_ID, edges=f"{a.in_edge} {a.out_edge}", priority="true")
+    return root
+
+
+# [m] spacing of the points of a connection's shape: SUMO interpolates linearly between them, and a
+# sagitta under 1 cm on the tightest left turn of the catalogue (R ≈ 8 m) needs ≤ 0.8 m
+CONNECTION_SHAPE_SPACING_M = 0.5
+
+
+def _connection_shapes_xml(spec: IntersectionSpec, net_file: Path) -> ET.Element:
+    """Every car connection of the spec with ``shape``: the paper's candidate path from the end of
+    its entrance lane to the start of its exit lane, on the lanes of ``net_file`` (pass 1)."""
+    junction = read_junction(net_file, JUNCTION_ID)
+    root = ET.Element("connections")
+    for link in spec.lane_links():
+        a, b = spec.approach(link.from_leg), spec.approach(link.to_leg)
+        from_lane, to_lane = _car_lane(a, link.from_lane), _car_lane(b, link.to_lane)
+        path = build_candidate("shape", "", a.in_edge, junction.lanes[f"{a.in_edge}_{from_lane}"],
+                               junction.lanes[f"{b.out_edge}_{to_lane}"], spacing_m=CONNECTION_SHAPE_SPACING_M)
+        curve = path.points[(path.s >= path.s_stop_line) & (path.s <= path.s_exit)]
+        ET.SubElement(root, "connection", {
+            "from": a.in_edge, "to": b.out_edge, "fromLane": str(from_lane), "toLane": str(to_lane),
+            "shape": " ".join(f"{x:.3f},{y:.3f}" for x, y in curve.tolist()),
+        })
     return root
 
 

@@ -48,7 +48,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, PARTICIPANT_KINDS, SIM_STEP_S
-from crossroads.geometry import heading_to_sumo_angle
+from crossroads.geometry import heading_to_sumo_angle, point_at, project_onto_polyline
 
 Kind = Literal["vehicle", "cyclist", "pedestrian"]
 KINDS: tuple[Kind, ...] = PARTICIPANT_KINDS
@@ -68,6 +68,10 @@ KEEP_ROUTE_OFF_ROAD = 2  # like 0 but may also leave the road network
 # Bits 1|2: stay on the own route AND keep the exact x, y. Without bit 2 SUMO snaps the vehicle
 # onto the lane centre unless the sublane model is on (measured: 0.3 m offset lost with 1).
 KEEP_ROUTE_EXACT = KEEP_ROUTE_ON_ROUTE | KEEP_ROUTE_OFF_ROAD
+
+# [m] a snapped ego is placed exactly again once its bumper is this far inside the off-road limit
+# (move_ego): a margin, so that a pose near the limit does not alternate between on and off the road
+EGO_SNAP_RELEASE_M = 0.5
 
 _INVALID = libsumo.INVALID_DOUBLE_VALUE
 
@@ -307,6 +311,8 @@ class SumoSession:
         self._persons: dict[str, None] = {}
         self._static = _StaticTable()
         self._egos: dict[str, float] = {}  # ego id -> length [m]
+        self._egos_inserted: set[str] = set()  # egos SUMO has put on the road (after their first step)
+        self._egos_snapped: set[str] = set()  # egos mapped onto their route's lane centres (move_ego)
         self._departed: tuple[str, ...] = ()
         self._step_index = 0  # steps since start; a snapshot reads its lanes only in its own step
         self._snapshot: Snapshot | None = None
@@ -376,6 +382,8 @@ class SumoSession:
         self._persons.clear()
         self._static = _StaticTable()
         self._egos.clear()
+        self._egos_inserted.clear()
+        self._egos_snapped.clear()
         self._departed = ()
         self._step_index = 0
         self._snapshot = None
@@ -437,6 +445,8 @@ class SumoSession:
             for vid in departed:
                 if vid not in self._egos:
                     self._vehicles[vid] = None
+                else:
+                    self._egos_inserted.add(vid)
             pdeparted = sim.getDepartedPersonIDList()
             for pid in pdeparted:
                 self._persons[pid] = None
@@ -447,6 +457,8 @@ class SumoSession:
         alive.pop(pid, None)
         self._static.forget(pid)
         self._egos.pop(pid, None)
+        self._egos_inserted.discard(pid)
+        self._egos_snapped.discard(pid)
 
     @property
     def departed_last_step(self) -> tuple[str, ...]:
@@ -625,15 +637,42 @@ class SumoSession:
         and junction foes see it on its link, and SUMO keeps the exact commanded x, y even off the
         lane centre (with keepRoute=1 alone it would snap onto the centre line).
         ``setSpeed`` first so SUMO reports (and followers use) the ego's true speed.
+
+        Except off the road: SUMO keeps an exact pose on a lane only while it lies within half the
+        lane's width and half the ego's of the lane's centre line; further off, it takes the ego off
+        its road network, where no follower and no junction foe sees it. From the step after SUMO
+        did so, the ego is mapped onto its route's lanes (keepRoute=1, the lane centre) until its
+        pose is back within ``EGO_SNAP_RELEASE_M`` of that limit (:meth:`_ego_keep_route`). Why:
+        the ego drove off SUMO's road for up to 10 s on the nominal left turn (its path swerving
+        around a queued car, or cutting a turn inside SUMO's internal lane), and two followers
+        drove into it (seeds 2090914255, 1809821748 at 60 s; docs/measurements/ego-in-sumo.md).
         """
         length = self._egos.get(ego_id, EGO_LENGTH_M)
         half = 0.5 * length
         fx = x + half * math.cos(heading_rad)
         fy = y + half * math.sin(heading_rad)
         libsumo.vehicle.setSpeed(ego_id, max(0.0, speed_mps))
+        if keep_route == KEEP_ROUTE_EXACT and ego_id in self._egos_inserted:
+            keep_route = self._ego_keep_route(ego_id, fx, fy)
         libsumo.vehicle.moveToXY(ego_id, edge_hint, lane_hint, fx, fy,
                                  heading_to_sumo_angle(heading_rad), keep_route)
         self._snapshot = None
+
+    def _ego_keep_route(self, ego_id: str, fx: float, fy: float) -> int:
+        """keepRoute for placing the ego's front bumper at ``fx``, ``fy`` (:meth:`move_ego`): exact,
+        or mapped onto its route's lanes from the step after SUMO took it off its road until the
+        bumper is back within the lane SUMO has it on."""
+        lane = libsumo.vehicle.getLaneID(ego_id)
+        if lane == "":
+            self._egos_snapped.add(ego_id)
+        elif ego_id in self._egos_snapped:
+            shape = np.asarray(libsumo.lane.getShape(lane), float)
+            _, s, _ = project_onto_polyline(shape, (fx, fy))
+            off = float(np.hypot(*(point_at(shape, s) - (fx, fy))))
+            limit = 0.5 * (libsumo.lane.getWidth(lane) + libsumo.vehicle.getWidth(ego_id))
+            if off < limit - EGO_SNAP_RELEASE_M:
+                self._egos_snapped.discard(ego_id)
+        return KEEP_ROUTE_ON_ROUTE if ego_id in self._egos_snapped else KEEP_ROUTE_EXACT
 
     @_sumo_errors
     def vehicle_pose(self, vehicle_id: str) -> tuple[float, float, float, float]:
