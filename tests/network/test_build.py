@@ -211,6 +211,24 @@ def test_explicit_out_dir(tmp_path: Path) -> None:
         build_network(spec, tmp_path / "foreign")
 
 
+
+def test_a_connection_the_bezier_cannot_join_keeps_netconverts_lane(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A user's geometry where the paper's construction fails for a connection (PlanningError) still
+    builds: that connection keeps netconvert's internal lane, and the build log says which."""
+    real = build_mod.build_candidate
+
+    def refuse_lefts_from_south(cid, task, approach_id, entrance, exit_, **kw):
+        if entrance.id.startswith("south_in") and exit_.id.startswith("west_out"):
+            raise build_mod.PlanningError("no Bezier here (test)")
+        return real(cid, task, approach_id, entrance, exit_, **kw)
+
+    monkeypatch.setattr(build_mod, "build_candidate", refuse_lefts_from_south)
+    net = build_network(load_spec("b_two_lane"), tmp_path / "b")
+    shaped = {(c.get("from"), c.get("to")) for c in ET.parse(tmp_path / "b" / "shapes.con.xml").getroot()}
+    assert ("south_in", "west_out") not in shaped and ("south_in", "north_out") in shaped
+    assert "kept netconvert's internal lane for south_in_" in (tmp_path / "b" / "netconvert.log").read_text()
+    assert net.is_file()
+
 def test_oblique_straight_agrees_with_sumo(tmp_path: Path) -> None:
     """A leg 30° off straight ahead is 'straight' for the spec and for SUMO (< 44°); the build
     checks SUMO's ``dir`` of every link against the spec and would fail otherwise."""

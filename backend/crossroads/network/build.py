@@ -49,7 +49,7 @@ from pathlib import Path
 
 from crossroads.network.junction import read_junction
 from crossroads.network.spec import ApproachSpec, IntersectionSpec
-from crossroads.planning.routes import build_candidate
+from crossroads.planning.routes import PlanningError, build_candidate
 
 BUILD_VERSION = "2"  # bump whenever the written XML or the netconvert options change
 JUNCTION_ID = "C"  # the junction's node id, also the traffic light's id
@@ -186,7 +186,10 @@ def _build_into(spec: IntersectionSpec, work: Path, key: str) -> None:
     )
     links = _tls_links(spec, first)
     _write_xml(_program_xml(spec, links), work / "program.tll.xml")
-    _write_xml(_connection_shapes_xml(spec, first), work / "shapes.con.xml")
+    shapes, unshaped = _connection_shapes_xml(spec, first)
+    _write_xml(shapes, work / "shapes.con.xml")
+    with log.open("a") as f:  # a user's geometry the Bezier cannot join keeps netconvert's lane
+        f.writelines(f"kept netconvert's internal lane for {name}: {why}\n" for name, why in unshaped)
 
     final = work / NET_FILE
     _netconvert(["--sumo-net-file", first, "--tllogic-files", work / "program.tll.xml",
@@ -350,22 +353,30 @@ def _connections_xml(spec: IntersectionSpec) -> ET.Element:
 CONNECTION_SHAPE_SPACING_M = 0.5
 
 
-def _connection_shapes_xml(spec: IntersectionSpec, net_file: Path) -> ET.Element:
+def _connection_shapes_xml(spec: IntersectionSpec, net_file: Path) -> tuple[ET.Element, list[tuple[str, str]]]:
     """Every car connection of the spec with ``shape``: the paper's candidate path from the end of
-    its entrance lane to the start of its exit lane, on the lanes of ``net_file`` (pass 1)."""
+    its entrance lane to the start of its exit lane, on the lanes of ``net_file`` (pass 1). Also the
+    connections left without one, ``(from lane → to lane, why)``: those the Bezier construction
+    cannot join (:class:`PlanningError`), which keep netconvert's internal lane."""
     junction = read_junction(net_file, JUNCTION_ID)
     root = ET.Element("connections")
+    unshaped: list[tuple[str, str]] = []
     for link in spec.lane_links():
         a, b = spec.approach(link.from_leg), spec.approach(link.to_leg)
         from_lane, to_lane = _car_lane(a, link.from_lane), _car_lane(b, link.to_lane)
-        path = build_candidate("shape", "", a.in_edge, junction.lanes[f"{a.in_edge}_{from_lane}"],
-                               junction.lanes[f"{b.out_edge}_{to_lane}"], spacing_m=CONNECTION_SHAPE_SPACING_M)
+        entrance, exit_ = f"{a.in_edge}_{from_lane}", f"{b.out_edge}_{to_lane}"
+        try:
+            path = build_candidate("shape", "", a.in_edge, junction.lanes[entrance], junction.lanes[exit_],
+                                   spacing_m=CONNECTION_SHAPE_SPACING_M)
+        except PlanningError as exc:
+            unshaped.append((f"{entrance} -> {exit_}", str(exc)))
+            continue
         curve = path.points[(path.s >= path.s_stop_line) & (path.s <= path.s_exit)]
         ET.SubElement(root, "connection", {
             "from": a.in_edge, "to": b.out_edge, "fromLane": str(from_lane), "toLane": str(to_lane),
             "shape": " ".join(f"{x:.3f},{y:.3f}" for x, y in curve.tolist()),
         })
-    return root
+    return root, unshaped
 
 
 # ---- the signal program -----------------------------------------------------------------------
