@@ -128,3 +128,19 @@ def test_run_bad_scenario_names_the_field(tmp_path: Path) -> None:
     result = crossroads("run", str(bad))
     assert result.returncode == 2
     assert "traffic.vehicles_per_hour" in result.stderr
+
+
+def test_net_check_lists_the_movements_and_fails_above_max_offset() -> None:
+    from support import SUMO_CROSS_NET, sumo_example
+
+    net = str(sumo_example(SUMO_CROSS_NET))
+    listed = crossroads("net", "check", net)
+    assert listed.returncode == 0, listed.stderr
+    flagged = [line for line in listed.stdout.splitlines() if line.startswith("!")]
+    assert flagged and all("(left" in line or "(uturn" in line or "(right" in line for line in flagged)
+    assert "movements above 1 m; the farthest 3.15 m" in listed.stdout
+    strict = crossroads("net", "check", net, "--max-offset", "2")
+    assert strict.returncode == 1 and "above --max-offset 2" in strict.stderr
+    movements = json.loads(crossroads("net", "check", net, "--json").stdout)
+    assert {"from_lane", "to_lane", "turn", "max_m", "mean_m", "above_warning"} <= set(movements[0])
+    assert crossroads("net", "check", "c_three_lane", "--max-offset", "0.05").returncode == 0

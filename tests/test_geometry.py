@@ -14,6 +14,8 @@ from crossroads.geometry import (
     bezier_control_points_construction,
     cubic_bezier,
     cubic_bezier_derivatives,
+    distances_to_polyline,
+    hausdorff_distance,
     heading_curvature_from_derivatives,
     project_onto_polyline,
     resample,
@@ -127,3 +129,22 @@ def test_wrap_scalar_is_wrap_angle_on_one_float() -> None:
     for angle in np.linspace(-20.0, 20.0, 401):
         assert wrap_scalar(float(angle)) == pytest.approx(wrap_angle(float(angle)), abs=1e-12)
     assert wrap_scalar(math.pi) == pytest.approx(-math.pi)  # [-π, π), as wrap_angle
+
+
+def test_distances_to_a_polyline_use_its_segments_and_its_ends() -> None:
+    line = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]])
+    points = np.array([[5.0, 3.0], [-4.0, 3.0], [12.0, 5.0], [10.0, 0.0]])
+    np.testing.assert_allclose(distances_to_polyline(points, line), [3.0, 5.0, 2.0, 0.0])
+    np.testing.assert_allclose(distances_to_polyline(points[:1], line[:1]), [math.hypot(5.0, 3.0)])
+
+
+@given(st.floats(-5.0, 5.0), st.floats(-5.0, 5.0))
+@settings(max_examples=50, deadline=None)
+def test_hausdorff_distance_of_a_shifted_polyline_is_at_most_the_shift(dx: float, dy: float) -> None:
+    arc = np.column_stack([np.cos(np.linspace(0.0, math.pi / 2, 40)),
+                           np.sin(np.linspace(0.0, math.pi / 2, 40))]) * 12.0
+    shifted = arc + np.array([dx, dy])
+    d = hausdorff_distance(arc, shifted)
+    assert d <= math.hypot(dx, dy) + 1e-9
+    assert hausdorff_distance(shifted, arc) == pytest.approx(d)
+    assert hausdorff_distance(arc, arc) == 0.0

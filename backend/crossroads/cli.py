@@ -125,6 +125,52 @@ def net_build(
     typer.echo(str(target))
 
 
+@net_app.command("check")
+@reports_errors
+def net_check(
+    ref: Annotated[str, typer.Argument(metavar="NAME|NET.net.xml", help="catalogue name, spec or SUMO net")],
+    junction: Annotated[str | None, typer.Option(help="traffic-light junction id (default: nearest the centre)")] = None,
+    max_offset: Annotated[float | None, typer.Option(
+        metavar="M", min=0.0, help="exit with status 1 when an internal lane runs further than M metres "
+                                   "from its candidate path (default: only report)")] = None,
+    rho: Annotated[float, typer.Option(min=0.0, max=1.0, help="ρ of the Bezier construction")] = RHO_BEZIER,
+    as_json: Annotated[bool, typer.Option("--json", help="print the movements as JSON")] = False,
+) -> None:
+    """How far SUMO's internal lanes run from the candidate paths, movement by movement.
+
+    SUMO's vehicles drive the internal lanes and SUMO puts the ego where it projects onto them;
+    the ego drives its candidate path. Movements further apart than half the ego's width are
+    marked. The catalogue's builds draw the internal lanes along the paths.
+    """
+    from crossroads.constants import INTERNAL_LANE_OFFSET_WARN_M
+    from crossroads.network.resolve import open_junction
+    from crossroads.planning.internal_lanes import internal_lane_offsets, worst_offset
+
+    junc = open_junction(ref, junction)
+    offsets = internal_lane_offsets(junc, rho=rho)
+    worst = worst_offset(offsets)
+    if as_json:
+        json.dump([o.to_json() for o in offsets], sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        typer.echo(f"junction {junc.id} (tl {junc.tl_id}): {len(offsets)} car movements; "
+                   f"max = farthest apart, mean = mean distance of the path from SUMO's lane; "
+                   f"! above {INTERNAL_LANE_OFFSET_WARN_M:g} m")
+        for o in offsets:
+            figures = (f"max {o.max_m:5.2f} m  mean {o.mean_m:5.2f} m" if o.max_m is not None and o.mean_m is not None
+                       else f"{o.problem}")
+            typer.echo(f"{'!' if o.above_warning else ' '} {o.from_lane} -> {o.to_lane} ({o.turn}, "
+                       f"via {o.via_lane or '-'}): {figures}")
+        above = sum(o.above_warning for o in offsets)
+        typer.echo(f"{above} of {len(offsets)} movements above {INTERNAL_LANE_OFFSET_WARN_M:g} m"
+                   + (f"; the farthest {worst.max_m:.2f} m" if worst is not None else ""))
+    if max_offset is not None and worst is not None and (worst.max_m or 0.0) > max_offset:
+        typer.secho(f"{worst.from_lane} -> {worst.to_lane}: SUMO's internal lane runs up to "
+                    f"{worst.max_m:.2f} m from its candidate path, above --max-offset {max_offset:g}",
+                    err=True, fg=typer.colors.RED)
+        raise typer.Exit(code=1)
+
+
 @app.command()
 @reports_errors
 def paths(
@@ -180,6 +226,7 @@ def run(
 ) -> None:
     """Run one episode of a scenario and print its outcome and travel time."""
     from crossroads.evaluation.episode import run_episode
+    from crossroads.evaluation.network_checks import internal_lane_warning
     from crossroads.evaluation.policies import load_controller
     from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config
     from crossroads.evaluation.trace import TraceRecorder
@@ -187,6 +234,8 @@ def run(
 
     spec = load_scenario(scenario)
     controller = load_controller(policy)
+    if warning := internal_lane_warning(spec, scenario.parent):
+        typer.secho(f"warning: {scenario}: {warning}", err=True, fg=typer.colors.YELLOW)
     episode_seed = run_seeds(spec, 1)[0] if seed is None else seed
     recorder = TraceRecorder() if trace is not None else None
     with World(to_world_config(spec, base_dir=scenario.parent)) as world:
@@ -230,7 +279,7 @@ def evaluate(
     from tqdm import tqdm
 
     from crossroads.evaluation.batch import BatchRunner, create_batch_for
-    from crossroads.evaluation.network_checks import network_problems
+    from crossroads.evaluation.network_checks import internal_lane_warning, network_problems
     from crossroads.evaluation.scenario import load_scenarios
     from crossroads.settings import Settings
     from crossroads.store import open_store
@@ -250,6 +299,8 @@ def evaluate(
         for path, spec in found:  # what only the network can tell, before any batch starts
             if problems := network_problems(spec, path.parent):
                 raise SpecError(str(path), problems)
+            if warning := internal_lane_warning(spec, path.parent):
+                typer.secho(f"warning: {path}: {warning}", err=True, fg=typer.colors.YELLOW)
         for path, spec in found:
             for ref in policy or ["rule"]:
                 planned.append(lambda spec=spec, ref=ref, base=path.parent: create_batch_for(

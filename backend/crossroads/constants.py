@@ -108,6 +108,14 @@ OTHER_DECEL_MPS2: Final = 4.5  # [m/s²]
 # Used for its SUMO vehicle, the true-footprint collision check and the safety circles.
 EGO_LENGTH_M: Final = 4.8  # [m]
 EGO_WIDTH_M: Final = 2.0  # [m]
+# (choice) How far SUMO's internal lane of a movement may run from the movement's candidate path
+# before the tool warns about the net (`crossroads net check`, uploads, `crossroads evaluate`):
+# half the ego's width. SUMO puts the ego where it projects onto that internal lane, and its
+# junction model and its drivers' leaders see it there; beyond half a car's width that place is
+# more than half a car from where the ego drives. netconvert's own lanes on the catalogue's nets
+# ran up to 2.55 m off the left turns (docs/measurements/ego-in-sumo.md); its builds now draw them
+# along the paths (network/build.py), but a user's net keeps its own.
+INTERNAL_LANE_OFFSET_WARN_M: Final = EGO_WIDTH_M / 2.0  # [m]
 # (choice) How far before the stop line the stop profile reaches 0: the paths are of the ego's
 # centre, and the judge (and the law) mean its front bumper. Without it the stop mode brought the
 # centre to rest on the line with the bumper 2.4 m past it: measured (session 18), the rule

@@ -284,6 +284,31 @@ def project_onto_polyline(polyline: ArrayLike, point: ArrayLike) -> tuple[int, f
     return i, s, cross / seg_len
 
 
+def distances_to_polyline(points: ArrayLike, polyline: ArrayLike) -> FloatArray:
+    """The distance of each point to the nearest point of a polyline (its segments, not only its
+    vertices) [m], as an ``(N,)`` array. A one-point polyline is treated as that point."""
+    p = as_points(points)
+    line = as_points(polyline)
+    if len(line) == 0:
+        raise ValueError("a polyline needs at least 1 point")
+    if len(line) == 1:
+        return np.hypot(*(p - line[0]).T)
+    a, ab = line[:-1], np.diff(line, axis=0)
+    seg_len2 = np.einsum("ij,ij->i", ab, ab)
+    seg_len2 = np.where(seg_len2 > 0.0, seg_len2, 1.0)
+    # (N, M) parameters of every point's foot on every segment, clamped onto the segment
+    rel = p[:, None, :] - a[None, :, :]
+    t = np.clip(np.einsum("nmk,mk->nm", rel, ab) / seg_len2, 0.0, 1.0)
+    gap = rel - t[:, :, None] * ab[None, :, :]
+    return np.sqrt(np.einsum("nmk,nmk->nm", gap, gap).min(axis=1))
+
+
+def hausdorff_distance(a: ArrayLike, b: ArrayLike) -> float:
+    """The largest distance from a vertex of either polyline to the other polyline [m]: how far
+    apart two polylines drawn at ≤ some spacing run, to within that spacing's sagitta."""
+    return float(max(distances_to_polyline(a, b).max(), distances_to_polyline(b, a).max()))
+
+
 def polygons_of(geometry: object) -> list:
     """The shapely Polygons inside any geometry (Polygon, MultiPolygon, collections; else none)."""
     from shapely.geometry import MultiPolygon, Polygon

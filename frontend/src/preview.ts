@@ -58,6 +58,21 @@ function drawRoads(svg: SVGSVGElement, geo: Json): void {
   }
 }
 
+/** SUMO's internal lane of each candidate's movement, dashed under it: where SUMO's vehicles
+ *  drive and where SUMO puts the ego. On a user's net netconvert's lanes can run metres off. */
+function drawSumoLanes(svg: SVGSVGElement, paths: Json[]): void {
+  paths.forEach((p, i) => {
+    if (!p.sumo_internal_lane) return;
+    const colour = PATH_COLOURS[i % PATH_COLOURS.length];
+    const line = svgEl("polyline", { points: pts(p.sumo_internal_lane), stroke: colour, "stroke-width": 0.35,
+      "stroke-dasharray": "1.2 0.8", fill: "none", opacity: 0.9, "class": "sumo-lane" });
+    const title = svgEl("title", {});
+    title.textContent = `SUMO's internal lane of ${p.id}: up to ${Number(p.sumo_offset_m).toFixed(2)} m from the path`;
+    line.append(title);
+    svg.append(line);
+  });
+}
+
 function drawPaths(svg: SVGSVGElement, paths: Json[]): void {
   paths.forEach((p, i) => {
     const colour = PATH_COLOURS[i % PATH_COLOURS.length];
@@ -123,6 +138,7 @@ export async function drawPreview(): Promise<void> {
     svg.setAttribute("viewBox", `${cx - r} ${-cy - r} ${2 * r} ${2 * r}`);
     svg.append(svgEl("rect", { x: cx - r, y: -cy - r, width: 2 * r, height: 2 * r, fill: "#dfe8d8" }));
     drawRoads(svg, geo);
+    drawSumoLanes(svg, paths);
     drawPaths(svg, paths);
     if (ego) drawEgo(svg, ego);
     const caption = svgEl("text", { x: cx - r + 2, y: -cy - r + 5, "font-size": (3.5 * r) / VIEW_RADIUS_M, fill: "#222" });

@@ -22,7 +22,12 @@ export async function uploadNetwork(): Promise<Json | null> {
   status.textContent = `uploading ${file.name}…`;
   try {
     const uploaded = await api("/api/intersections/upload", { method: "POST", body });
-    status.textContent = `${uploaded.name}: junction ${uploaded.junction}, ${uploaded.approaches.length} approaches`;
+    // A net whose internal lanes run off the candidate paths still runs, but SUMO sees the ego
+    // elsewhere than it drives there: said once, here, where the net comes in.
+    const warning: string | null = uploaded.internal_lanes?.warning ?? null;
+    status.textContent = `${uploaded.name}: junction ${uploaded.junction}, ${uploaded.approaches.length} approaches`
+      + (warning ? `. Warning: ${warning}` : "");
+    status.classList.toggle("warning", warning !== null);
     input.value = "";
     return addUpload(uploaded);
   } catch (e) {

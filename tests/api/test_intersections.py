@@ -42,6 +42,8 @@ def test_paths_endpoint(client: TestClient) -> None:
     name = client.get("/api/intersections").json()[0]["name"]
     paths = client.get(f"/api/intersections/{name}/paths", params={"task": "left"}).json()
     assert paths and all(p["task"] == "left" and len(p["control_points"]) == 6 for p in paths)
+    # SUMO's internal lane of each candidate's movement, for the preview: along it on a catalogue build
+    assert all(len(p["sumo_internal_lane"]) >= 2 and p["sumo_offset_m"] < 0.05 for p in paths)
 
 
 def test_unknown_intersection_is_404(client: TestClient) -> None:
@@ -66,3 +68,10 @@ def test_unknown_approach_names_the_field(client: TestClient) -> None:
     response = client.get(f"/api/intersections/{name}/paths", params={"task": "left", "approach": "nope"})
     assert response.status_code == 422
     assert response.json()["detail"].startswith("approach:")
+
+
+def test_internal_lanes_of_a_catalogue_build_follow_the_paths(client: TestClient) -> None:
+    body = client.get("/api/intersections/c_three_lane/internal-lanes").json()
+    assert body["warning"] is None and body["max_m"] < 0.05
+    assert len(body["movements"]) == 36 and not any(m["above_warning"] for m in body["movements"])
+    assert client.get("/api/intersections/nowhere/internal-lanes").status_code == 404

@@ -141,3 +141,25 @@ def test_uploads_are_listed_with_their_paths_and_program(client: TestClient, fie
     bad = client.get(f"/api/intersections/uploads/{digest}/paths", params={"task": "left", "approach": "x"})
     assert bad.status_code == 422 and bad.json()["detail"].startswith("approach:")
     assert client.get(f"/api/intersections/uploads/{'0' * 64}/paths", params={"task": "left"}).status_code == 404
+
+
+def test_a_net_whose_internal_lanes_run_off_the_paths_is_flagged(
+        client: TestClient, data_dir: Path, tiny_scenario: dict[str, Any]) -> None:
+    """netconvert drew cross.net.xml's left turns up to 3.1 m from the candidate paths: the upload
+    answer says so, the full list is one GET away, and validating a scenario on it warns (the
+    scenario stays valid: it runs, SUMO just sees the ego elsewhere)."""
+    body = _upload(client, sumo_example(SUMO_CROSS_NET).read_bytes(), "cross.net.xml").json()
+    lanes = body["internal_lanes"]
+    assert lanes["max_m"] > 2.0 and "cross.net.xml" in lanes["warning"]
+    listed = client.get(f"/api/intersections/uploads/{body['id']}/internal-lanes").json()
+    assert listed["max_m"] == lanes["max_m"] and listed["warning"] == lanes["warning"]
+    flagged = [m for m in listed["movements"] if m["above_warning"]]
+    assert flagged and all(m["max_m"] > 1.0 for m in flagged)
+    assert {m["turn"] for m in listed["movements"]} >= {"left", "straight", "right"}
+
+    scenario = {**tiny_scenario, "name": "warned", "task": "left", "intersection": {"net": body["net"]}}
+    checked = client.post("/api/scenarios/validate", json=scenario).json()
+    assert checked["valid"] and checked["problems"] == []
+    assert [w["field"] for w in checked["warnings"]] == ["intersection"]
+    assert "left from" in checked["warnings"][0]["message"]
+    assert str(data_dir) not in checked["warnings"][0]["message"]

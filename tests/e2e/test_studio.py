@@ -178,6 +178,12 @@ def test_upload_a_network_and_drive_it_live(studio_url: str, browser: Any, artif
     selected = page.eval_on_selector("select[name=intersection]", "s => s.selectedOptions[0].textContent")
     assert selected == "cross.net.xml (uploaded)"
     assert page.locator("#preview polyline.candidate").count() >= 1
+    # netconvert drew this net's internal lanes up to 3.1 m off the left-turn paths: said at upload
+    status = page.locator("#upload-status.warning")
+    assert "internal lanes" in status.inner_text() and "crossroads net check" in status.inner_text()
+    # ... and the preview draws SUMO's internal lane beside each candidate, dashed
+    assert page.locator("#preview polyline.sumo-lane").count() == page.locator("#preview polyline.candidate").count()
+    assert "m from the path" in page.locator("#preview polyline.sumo-lane title").first.text_content()
     page.locator("#preview rect.ego-start").wait_for()
     page.screenshot(path=str(artifacts / "10-uploaded.png"), full_page=True)
 

@@ -160,6 +160,7 @@ def test_cli_evaluate_json(scenario_file: Path, tmp_path: Path, monkeypatch: pyt
     text = CliRunner().invoke(app, ["evaluate", "--resume", str(batch["batch_id"]), "--db", db])
     assert text.exit_code == 0 and f"batch {batch['batch_id']}: tiny-left x rule [done]" in text.stdout
 
+    assert "warning" not in text.stderr  # the catalogue's internal lanes follow the paths
     bad = CliRunner().invoke(app, ["evaluate", str(scenario_file), "--policy", "missing.pt", "--db", db])
     assert bad.exit_code == 2 and "missing.pt" in bad.output
 
@@ -186,3 +187,20 @@ def test_cli_evaluate_checks_the_network_before_any_batch(tmp_path: Path) -> Non
     assert out.exit_code == 2 and "ego.entrance_lane" in out.output and "'nope_0'" in out.output
     with open_store(db) as store, store.session() as s:
         assert crud.list_batches(session=s) == []
+
+
+def test_cli_evaluate_warns_when_the_egos_internal_lanes_run_off_its_paths(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """SUMO's example cross.net.xml, netconvert's lanes: the left turns' internal lanes run up to
+    3.1 m from the candidate paths. The batch runs, with a warning naming the net and the movement."""
+    from support import SUMO_CROSS_NET, sumo_example
+
+    monkeypatch.setenv("CROSSROADS_DATA_DIR", str(tmp_path / "data"))
+    path = tmp_path / "cross-left.yaml"
+    path.write_text(yaml.safe_dump({**TINY, "name": "cross-left",
+                                    "intersection": {"net": str(sumo_example(SUMO_CROSS_NET))}}))
+    out = CliRunner().invoke(app, ["evaluate", str(path), "--policy", "rule", "--runs", "1", "--workers", "1",
+                                   "--db", f"sqlite:///{tmp_path / 'cli.db'}", "--traces", "none"])
+    assert out.exit_code == 0, out.output
+    assert "warning:" in out.stderr and "cross.net.xml (left from" in out.stderr
+    assert "crossroads net check" in out.stderr and "cross-left x rule" in out.stdout

@@ -25,6 +25,9 @@ class Problem(BaseModel):
 class ScenarioValidation(BaseModel):
     valid: bool
     problems: list[Problem]
+    warnings: list[Problem] = Field(default_factory=list, description=(
+        "what does not stop the scenario from running but should be known: SUMO's internal lanes "
+        "of the ego's movements running off its candidate paths"))
 
 
 class ScenarioPublic(BaseModel):

@@ -21,6 +21,7 @@ from crossroads.network.junction import JunctionError
 from crossroads.network.model import Approach, Junction
 from crossroads.network.resolve import NetworkNotFoundError, open_junction
 from crossroads.planning import PlanningError, plan_candidates
+from crossroads.planning.internal_lanes import internal_lane_offsets, offset_warning
 from crossroads.sim.signals import SignalError, TlProgram, read_program
 from crossroads.validation import SpecError
 
@@ -125,3 +126,20 @@ def network_problems(spec: ScenarioSpec, base_dir: str | Path | None = None) -> 
     if approach is not None:
         problems = _ego_problems(spec, junction, approach)
     return problems + _light_problems(spec, junction)
+
+
+def internal_lane_warning(spec: ScenarioSpec, base_dir: str | Path | None = None) -> str | None:
+    """A warning when SUMO's internal lanes of the ego's movements (its approach, its task) run
+    further from their candidate paths than half the ego's width (``planning.internal_lanes``):
+    not an error, the scenario runs, but SUMO sees the ego elsewhere than it drives. None when
+    they do not, or when the network has problems of its own (:func:`network_problems` names them)."""
+    junction, problems = _junction_of(spec, None if base_dir is None else Path(base_dir))
+    if junction is None:
+        return None
+    approach, problems = _approach_of(spec, junction)
+    if approach is None:
+        return None
+    offsets = [o for o in internal_lane_offsets(junction, rho=spec.rho)
+               if o.approach == approach.id and o.turn == spec.task]
+    name = spec.intersection if isinstance(spec.intersection, str) else junction.net_file.name
+    return offset_warning(offsets, f"{name} ({spec.task} from {approach.id})")

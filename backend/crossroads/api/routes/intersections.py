@@ -10,9 +10,15 @@ from crossroads.evaluation.network_checks import program_json
 from crossroads.constants import RHO_BEZIER
 from crossroads.network import catalogue
 from crossroads.network.export import junction_geometry
-from crossroads.network.model import Junction
+from crossroads.network.model import Connection, Junction
 from crossroads.network.resolve import open_junction
 from crossroads.planning import PlanningError, plan_candidates
+from crossroads.planning.internal_lanes import (
+    internal_lane_offsets,
+    movement_offset,
+    offset_warning,
+    worst_offset,
+)
 
 router = APIRouter(prefix="/intersections", tags=["intersections"])
 
@@ -64,7 +70,35 @@ def paths_of(junction: Junction, task: str, approach: str | None, rho: float) ->
         candidates = plan_candidates(junction, task, approach=chosen, rho=rho)
     except PlanningError as exc:
         raise HTTPException(status_code=422, detail=f"task: {exc}") from exc
-    return [c.to_json() for c in candidates]
+    movements = {(c.from_lane, c.to_lane): c for c in chosen.connections}
+    return [{**c.to_json(), **_sumo_lane(junction, chosen.id, movements.get((c.entrance_lane, c.exit_lane)), rho)}
+            for c in candidates]
+
+
+def _sumo_lane(junction: Junction, approach: str, conn: Connection | None, rho: float) -> dict[str, Any]:
+    """SUMO's internal lane of a candidate's movement, for drawing beside it, and how far apart
+    the two run (``planning.internal_lanes``)."""
+    if conn is None or conn.via_shape is None:
+        return {"sumo_internal_lane": None, "sumo_offset_m": None}
+    offset = movement_offset(junction, approach, conn, rho)
+    return {"sumo_internal_lane": conn.via_shape.round(3).tolist(),
+            "sumo_offset_m": None if offset.max_m is None else round(offset.max_m, 3)}
+
+
+def internal_lanes_of(junction: Junction, name: str) -> dict[str, Any]:
+    """How far SUMO's internal lanes run from the candidate paths: the farthest, the warning
+    sentence (None when every movement is within half the ego's width) and every movement."""
+    offsets = internal_lane_offsets(junction)
+    worst = worst_offset(offsets)
+    return {"max_m": None if worst is None or worst.max_m is None else round(worst.max_m, 3),
+            "warning": offset_warning(offsets, name), "movements": [o.to_json() for o in offsets]}
+
+
+@router.get("/{name}/internal-lanes")
+def internal_lanes(name: str) -> dict[str, Any]:
+    """How far SUMO's internal lanes run from the candidate paths of the same movements (the
+    catalogue's builds draw them along the paths; see ``crossroads net check``)."""
+    return internal_lanes_of(open_junction(name), name)
 
 
 @router.get("/{name}/paths")

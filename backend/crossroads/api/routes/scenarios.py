@@ -21,7 +21,7 @@ from sqlalchemy.orm import Session
 
 from crossroads.api.deps import SessionDep, SettingsDep, unprocessable
 from crossroads.api.schemas import Problem, ScenarioPublic, ScenarioValidation
-from crossroads.evaluation.network_checks import network_problems
+from crossroads.evaluation.network_checks import internal_lane_warning, network_problems
 from crossroads.evaluation.scenario import (
     ScenarioSpec,
     canonical_json,
@@ -101,9 +101,12 @@ def json_schema() -> dict[str, Any]:
 @router.post("/validate")
 def validate(data: ScenarioBody, settings: SettingsDep) -> ScenarioValidation:
     """Check a scenario without storing it: every problem, each naming its field."""
-    _, problems = scenario_problems(data, settings)
+    spec, problems = scenario_problems(data, settings)
+    warning = None if spec is None else internal_lane_warning(spec, settings.data_dir)
     return ScenarioValidation(valid=not problems,
-                              problems=[Problem(field=f, message=m) for f, m in problems])
+                              problems=[Problem(field=f, message=m) for f, m in problems],
+                              warnings=[] if warning is None else [Problem(
+                                  field="intersection", message=warning.replace(str(settings.data_dir), "<data>"))])
 
 
 @router.get("")

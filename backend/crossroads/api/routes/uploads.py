@@ -30,7 +30,7 @@ from fastapi import APIRouter, HTTPException, Query, Request
 
 from crossroads.api.deps import OptionsDep, SettingsDep
 from crossroads.evaluation.network_checks import program_json
-from crossroads.api.routes.intersections import geometry_with_program, paths_of, signal_links
+from crossroads.api.routes.intersections import geometry_with_program, internal_lanes_of, paths_of, signal_links
 from crossroads.constants import RHO_BEZIER
 from crossroads.network.export import junction_geometry
 from crossroads.network.junction import JunctionError, read_junction
@@ -153,12 +153,14 @@ def _read_and_store(data: bytes, digest: str, filename: str, target_dir: Path) -
         except JunctionError as exc:
             raise _bad(str(exc).replace(str(tmp), filename)) from None
         geometry = {**junction_geometry(junction), "signal_links": signal_links(junction)}
+        lanes = internal_lanes_of(junction, filename)
         os.replace(tmp, final)
     finally:
         tmp.unlink(missing_ok=True)
     _write_name(target_dir, digest, filename)
     return {"name": filename, "id": digest, "net": f"{UPLOADS}/{final.name}", "size_bytes": len(data),
-            "junction": junction.id, **geometry, "program": program_json(final, junction.tl_id)}
+            "junction": junction.id, **geometry, "program": program_json(final, junction.tl_id),
+            "internal_lanes": {"max_m": lanes["max_m"], "warning": lanes["warning"]}}
 
 
 def _write_name(target_dir: Path, digest: str, filename: str) -> None:
@@ -213,6 +215,13 @@ def uploaded_geometry(digest: str, settings: SettingsDep) -> dict[str, Any]:
     junction = open_junction(path)
     return {"name": _uploaded_name(path.parent, digest), "id": digest, "net": f"{UPLOADS}/{path.name}",
             "size_bytes": path.stat().st_size, "junction": junction.id, **geometry_with_program(junction)}
+
+
+@router.get("/uploads/{digest}/internal-lanes")
+def uploaded_internal_lanes(digest: str, settings: SettingsDep) -> dict[str, Any]:
+    """How far SUMO's internal lanes of an uploaded network run from the candidate paths."""
+    path = _uploaded_path(digest, settings.data_dir)
+    return internal_lanes_of(open_junction(path), _uploaded_name(path.parent, digest))
 
 
 @router.get("/uploads/{digest}/paths")
