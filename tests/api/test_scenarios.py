@@ -97,7 +97,7 @@ def test_not_json_at_all(client: TestClient) -> None:
 
 
 def test_validate_reports_every_problem(client: TestClient, tiny_scenario: dict[str, Any]) -> None:
-    assert client.post("/api/scenarios/validate", json=tiny_scenario).json() == {"valid": True, "problems": []}
+    assert client.post("/api/scenarios/validate", json=tiny_scenario).json() == {"valid": True, "problems": [], "warnings": []}
     bad = {**tiny_scenario, "runs": 0, "rho": 2.0, "extra": 1}
     body = client.post("/api/scenarios/validate", json=bad).json()
     assert body["valid"] is False
