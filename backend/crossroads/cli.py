@@ -158,13 +158,13 @@ def net_check(
                    f"! above {INTERNAL_LANE_OFFSET_WARN_M:g} m")
         for o in offsets:
             figures = (f"max {o.max_m:5.2f} m  mean {o.mean_m:5.2f} m" if o.max_m is not None and o.mean_m is not None
-                       else f"{o.problem}")
+                       else o.problem)
             typer.echo(f"{'!' if o.above_warning else ' '} {o.from_lane} -> {o.to_lane} ({o.turn}, "
                        f"via {o.via_lane or '-'}): {figures}")
         above = sum(o.above_warning for o in offsets)
         typer.echo(f"{above} of {len(offsets)} movements above {INTERNAL_LANE_OFFSET_WARN_M:g} m"
                    + (f"; the farthest {worst.max_m:.2f} m" if worst is not None else ""))
-    if max_offset is not None and worst is not None and (worst.max_m or 0.0) > max_offset:
+    if max_offset is not None and worst is not None and worst.max_m is not None and worst.max_m > max_offset:
         typer.secho(f"{worst.from_lane} -> {worst.to_lane}: SUMO's internal lane runs up to "
                     f"{worst.max_m:.2f} m from its candidate path, above --max-offset {max_offset:g}",
                     err=True, fg=typer.colors.RED)

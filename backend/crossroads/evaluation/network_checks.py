@@ -133,13 +133,12 @@ def internal_lane_warning(spec: ScenarioSpec, base_dir: str | Path | None = None
     further from their candidate paths than half the ego's width (``planning.internal_lanes``):
     not an error, the scenario runs, but SUMO sees the ego elsewhere than it drives. None when
     they do not, or when the network has problems of its own (:func:`network_problems` names them)."""
-    junction, problems = _junction_of(spec, None if base_dir is None else Path(base_dir))
+    junction, _ = _junction_of(spec, None if base_dir is None else Path(base_dir))
     if junction is None:
         return None
-    approach, problems = _approach_of(spec, junction)
+    approach, _ = _approach_of(spec, junction)
     if approach is None:
         return None
-    offsets = [o for o in internal_lane_offsets(junction, rho=spec.rho)
-               if o.approach == approach.id and o.turn == spec.task]
+    offsets = internal_lane_offsets(junction, rho=spec.rho, approach=approach, turn=spec.task)
     name = spec.intersection if isinstance(spec.intersection, str) else junction.net_file.name
     return offset_warning(offsets, f"{name} ({spec.task} from {approach.id})")

@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from crossroads.constants import INTERNAL_LANE_OFFSET_WARN_M, RHO_BEZIER
-from crossroads.geometry import distances_to_polyline, hausdorff_distance
-from crossroads.network.model import Connection, Junction
-from crossroads.planning.routes import PlanningError, build_candidate
+from crossroads.geometry import FloatArray, distances_to_polyline, hausdorff_distance
+from crossroads.network.model import Approach, Connection, Junction
+from crossroads.planning.routes import CandidatePath, PlanningError, build_candidate
 
 
 @dataclass(frozen=True)
@@ -70,14 +70,26 @@ def movement_offset(junction: Junction, approach: str, conn: Connection,
                                junction.lanes[conn.to_lane], rho=rho)
     except PlanningError as exc:
         return InternalLaneOffset(**base, max_m=None, mean_m=None, problem=f"no candidate path: {exc}")
+    max_m, mean_m = path_offset(path, conn.via_shape)
+    return InternalLaneOffset(**base, max_m=max_m, mean_m=mean_m)
+
+
+def path_offset(path: CandidatePath, internal_lane: FloatArray) -> tuple[float, float]:
+    """``(max, mean)`` [m]: the Hausdorff distance between the junction part of ``path`` (stop
+    line to exit) and SUMO's ``internal_lane`` of the same movement, and the mean distance of
+    that part's points from the lane."""
     curve = path.points[(path.s >= path.s_stop_line) & (path.s <= path.s_exit)]
-    return InternalLaneOffset(**base, max_m=hausdorff_distance(curve, conn.via_shape),
-                              mean_m=float(np.mean(distances_to_polyline(curve, conn.via_shape))))
+    return (hausdorff_distance(curve, internal_lane),
+            float(np.mean(distances_to_polyline(curve, internal_lane))))
 
 
-def internal_lane_offsets(junction: Junction, rho: float = RHO_BEZIER) -> list[InternalLaneOffset]:
-    """Every car movement of every approach of ``junction``, in the junction's order."""
-    return [movement_offset(junction, a.id, c, rho) for a in junction.approaches for c in a.connections]
+def internal_lane_offsets(junction: Junction, rho: float = RHO_BEZIER, approach: Approach | None = None,
+                          turn: str | None = None) -> list[InternalLaneOffset]:
+    """Every car movement of ``junction`` (of one ``approach`` and one ``turn`` where given), in
+    the junction's order."""
+    approaches = junction.approaches if approach is None else (approach,)
+    return [movement_offset(junction, a.id, c, rho) for a in approaches
+            for c in (a.connections if turn is None else a.connections_for(turn))]
 
 
 def worst_offset(offsets: list[InternalLaneOffset]) -> InternalLaneOffset | None:

@@ -10,15 +10,11 @@ from crossroads.evaluation.network_checks import program_json
 from crossroads.constants import RHO_BEZIER
 from crossroads.network import catalogue
 from crossroads.network.export import junction_geometry
-from crossroads.network.model import Connection, Junction
+from crossroads.geometry import FloatArray
+from crossroads.network.model import Junction
 from crossroads.network.resolve import open_junction
-from crossroads.planning import PlanningError, plan_candidates
-from crossroads.planning.internal_lanes import (
-    internal_lane_offsets,
-    movement_offset,
-    offset_warning,
-    worst_offset,
-)
+from crossroads.planning import CandidatePath, PlanningError, plan_candidates
+from crossroads.planning.internal_lanes import internal_lane_offsets, offset_warning, path_offset, worst_offset
 
 router = APIRouter(prefix="/intersections", tags=["intersections"])
 
@@ -70,19 +66,17 @@ def paths_of(junction: Junction, task: str, approach: str | None, rho: float) ->
         candidates = plan_candidates(junction, task, approach=chosen, rho=rho)
     except PlanningError as exc:
         raise HTTPException(status_code=422, detail=f"task: {exc}") from exc
-    movements = {(c.from_lane, c.to_lane): c for c in chosen.connections}
-    return [{**c.to_json(), **_sumo_lane(junction, chosen.id, movements.get((c.entrance_lane, c.exit_lane)), rho)}
-            for c in candidates]
+    lanes = {(c.from_lane, c.to_lane): c.via_shape for c in chosen.connections}
+    return [{**c.to_json(), **_sumo_lane(c, lanes.get((c.entrance_lane, c.exit_lane)))} for c in candidates]
 
 
-def _sumo_lane(junction: Junction, approach: str, conn: Connection | None, rho: float) -> dict[str, Any]:
+def _sumo_lane(path: CandidatePath, internal_lane: FloatArray | None) -> dict[str, Any]:
     """SUMO's internal lane of a candidate's movement, for drawing beside it, and how far apart
     the two run (``planning.internal_lanes``)."""
-    if conn is None or conn.via_shape is None:
+    if internal_lane is None:
         return {"sumo_internal_lane": None, "sumo_offset_m": None}
-    offset = movement_offset(junction, approach, conn, rho)
-    return {"sumo_internal_lane": conn.via_shape.round(3).tolist(),
-            "sumo_offset_m": None if offset.max_m is None else round(offset.max_m, 3)}
+    max_m, _ = path_offset(path, internal_lane)
+    return {"sumo_internal_lane": internal_lane.round(3).tolist(), "sumo_offset_m": round(max_m, 3)}
 
 
 def internal_lanes_of(junction: Junction, name: str) -> dict[str, Any]:

@@ -105,8 +105,7 @@ def validate(data: ScenarioBody, settings: SettingsDep) -> ScenarioValidation:
     warning = None if spec is None else internal_lane_warning(spec, settings.data_dir)
     return ScenarioValidation(valid=not problems,
                               problems=[Problem(field=f, message=m) for f, m in problems],
-                              warnings=[] if warning is None else [Problem(
-                                  field="intersection", message=warning.replace(str(settings.data_dir), "<data>"))])
+                              warnings=[] if warning is None else [Problem(field="intersection", message=warning)])
 
 
 @router.get("")
