@@ -103,15 +103,24 @@ export async function cancelBatch(batchId: number): Promise<void> {
 
 // --- results ---------------------------------------------------------------------------------------
 
+/** The warnings stored with a batch when it was created (e.g. SUMO's internal lanes off the ego's
+ *  paths): the batch ran, so they are said beside its figures, as the upload says them, not as errors. */
+function warningsHtml(b: Json): string {
+  const warnings: string[] = b.warnings ?? [];
+  if (!warnings.length) return "";
+  return `<ul id="batch-warnings" class="hint warning">${warnings.map((w) => `<li>Warning: ${esc(w)}</li>`).join("")}</ul>`;
+}
+
 function summaryHtml(b: Json): string {
   const s = b.summary;
-  if (!s) return "<p>No results yet.</p>";
+  if (!s) return `<p>No results yet.</p>${warningsHtml(b)}`;
   const counts = Object.entries(s.outcome_counts as Record<string, number>)
     .map(([k, v]) => `<tr><td>${esc(k)}</td><td>${v}</td></tr>`).join("");
   const tt = s.travel_time_mean_s == null ? "–" : `${s.travel_time_mean_s.toFixed(2)} ± ${(s.travel_time_std_s ?? 0).toFixed(2)} s`;
   return `
     <p>Batch #${b.id}: <b>${esc(b.scenario)}</b> with policy <b>${esc(b.policy)}</b> — <span id="batch-status">${esc(b.status)}</span>
       (${s.recorded}/${b.runs} recorded, ${s.errors} errors)${b.error ? ` <span class="error">${esc(b.error)}</span>` : ""}</p>
+    ${warningsHtml(b)}
     <dl class="figures">
       <div><dt>Pass rate</dt><dd id="pass-rate">${pct(s.pass_rate)}</dd></div>
       <div><dt>Wilson 95 %</dt><dd id="wilson">[${pct(s.wilson_low)}, ${pct(s.wilson_high)}]</dd></div>
@@ -145,7 +154,9 @@ export async function showBatch(batchId: number): Promise<void> {
 function batchRow(b: Json): string {
   const status = b.status === "queued" && b.queue_position ? `queued (#${b.queue_position})` : b.status;
   const cancel = FINISHED.includes(b.status) ? "" : ` <button type="button" data-cancel="${b.id}">Cancel</button>`;
-  return `<tr data-id="${b.id}"><td>${b.id}</td><td>${esc(b.scenario)}</td><td>${esc(b.policy)}</td><td class="status">${esc(status)}</td>
+  const warnings: string[] = b.warnings ?? [];
+  const warned = warnings.length ? ` <span class="hint warning" title="${esc(warnings.join("\n"))}">(warning)</span>` : "";
+  return `<tr data-id="${b.id}"><td>${b.id}</td><td>${esc(b.scenario)}${warned}</td><td>${esc(b.policy)}</td><td class="status">${esc(status)}</td>
     <td>${b.progress.done}/${b.progress.total}</td><td><button type="button" data-batch="${b.id}">Show</button>${cancel}</td></tr>`;
 }
 

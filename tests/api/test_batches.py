@@ -6,10 +6,13 @@ from __future__ import annotations
 
 import json
 import time
+from pathlib import Path
 from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
+
+from support import SUMO_CROSS_NET, sumo_example
 
 FAST_S = 1.0  # [s] an answer while a batch runs must come faster than this
 
@@ -86,6 +89,7 @@ def test_tiny_batch_end_to_end(client: TestClient, tiny_batch: int) -> None:
 
     body = client.get(f"/api/batches/{tiny_batch}").json()
     assert body["status"] == "done" and body["policy"] == "rule" and body["scenario"] == "api-tiny-left"
+    assert body["warnings"] == []  # the catalogue's internal lanes follow the candidate paths
     assert body["progress"] == {"done": 2, "total": 2, "passed": body["summary"]["passed"],
                                 "errors": 0, "fraction": 1.0}
     summary = body["summary"]
@@ -147,6 +151,28 @@ def test_a_batch_that_cannot_start_fails_with_its_reason(client: TestClient, tin
     assert response.status_code == 202
     body = wait_for(response.json()["id"], ("failed", "done", "cancelled"), timeout_s=60)
     assert body["status"] == "failed" and body["error"]
+
+
+def test_a_batch_on_a_net_whose_internal_lanes_run_off_the_paths_keeps_the_warning(
+        client: TestClient, tiny_scenario: dict[str, Any], data_dir: Path, wait_for: Any) -> None:
+    """netconvert drew cross.net.xml's left turns up to 3.1 m from the candidate paths: a batch on
+    it stores the warning POST /scenarios/validate gives, and every answer about it carries it."""
+    upload = client.post("/api/intersections/upload", files={
+        "file": ("cross.net.xml", sumo_example(SUMO_CROSS_NET).read_bytes(), "application/xml")}).json()
+    scenario = {**tiny_scenario, "name": "api-cross-left", "intersection": {"net": upload["net"]}}
+    (expected,) = client.post("/api/scenarios/validate", json=scenario).json()["warnings"]
+    response = client.post("/api/batches", json={"scenario": scenario, "runs": 1, "workers": 1,
+                                                 "traces": "none"})
+    assert response.status_code == 202, response.text
+    batch_id = response.json()["id"]
+    body = wait_for(batch_id, ("done", "failed", "cancelled"))
+    assert body["status"] == "done" and body["warnings"] == [expected["message"]]
+    # named as uploaded, with the digest's start; the server's data directory stays out of it
+    assert f"cross.net.xml (upload {upload['id'][:12]}) (left from" in expected["message"] and str(data_dir) not in expected["message"]
+    listed = {b["id"]: b for b in client.get("/api/batches", params={"limit": 1000}).json()}
+    assert listed[batch_id]["warnings"] == body["warnings"]
+    html = client.get("/api/reports", params={"batch": [batch_id], "format": "html"}).text
+    assert "<h2>Warnings</h2>" in html and "api-cross-left" in html
 
 
 def test_reports(client: TestClient, finished_batch: dict[str, Any]) -> None:

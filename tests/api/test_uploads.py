@@ -162,4 +162,6 @@ def test_a_net_whose_internal_lanes_run_off_the_paths_is_flagged(
     assert checked["valid"] and checked["problems"] == []
     assert [w["field"] for w in checked["warnings"]] == ["intersection"]
     assert "left from" in checked["warnings"][0]["message"]
+    # named as the user uploaded it, not by its digest alone
+    assert f"cross.net.xml (upload {body['id'][:12]})" in checked["warnings"][0]["message"]
     assert str(data_dir) not in checked["warnings"][0]["message"]

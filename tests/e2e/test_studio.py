@@ -110,6 +110,7 @@ def test_author_run_and_play_back(studio_url: str, browser: Any, artifacts: Path
     page.wait_for_selector("#pass-rate", timeout=BATCH_TIMEOUT_MS)
     assert re.fullmatch(r"\d+\.\d %", page.inner_text("#pass-rate"))
     assert page.inner_text("#wilson").startswith("[")
+    assert page.locator("#batch-warnings").count() == 0  # a catalogue net: nothing stored to warn of
     assert page.locator("#episodes tbody tr").count() == 2
     page.wait_for_selector("#compare table.compare")
     page.screenshot(path=str(artifacts / "05-results.png"), full_page=True)

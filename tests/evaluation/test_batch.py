@@ -171,6 +171,7 @@ def test_cli_evaluate_json(scenario_file: Path, tmp_path: Path, monkeypatch: pyt
     assert made.exit_code == 0, made.output
     html = report.read_text()
     assert "tiny-left" in html and "data:image/png;base64," in html
+    assert "<h2>Warnings</h2>" not in html  # nothing stored for a catalogue net
     assert table.read_text().count("\n") == 2  # header + one batch
     missing = CliRunner().invoke(app, ["report", "999", "--db", db, "-o", str(report)])
     assert missing.exit_code == 2 and "no batch 999" in missing.output
@@ -199,8 +200,37 @@ def test_cli_evaluate_warns_when_the_egos_internal_lanes_run_off_its_paths(
     path = tmp_path / "cross-left.yaml"
     path.write_text(yaml.safe_dump({**TINY, "name": "cross-left",
                                     "intersection": {"net": str(sumo_example(SUMO_CROSS_NET))}}))
+    db = f"sqlite:///{tmp_path / 'cli.db'}"
     out = CliRunner().invoke(app, ["evaluate", str(path), "--policy", "rule", "--runs", "1", "--workers", "1",
-                                   "--db", f"sqlite:///{tmp_path / 'cli.db'}", "--traces", "none"])
+                                   "--db", db, "--traces", "none"])
     assert out.exit_code == 0, out.output
     assert "warning:" in out.stderr and "cross.net.xml (left from" in out.stderr
     assert "crossroads net check" in out.stderr and "cross-left x rule" in out.stdout
+    # the batch keeps the warning it printed, and its reports show it, read whenever they are
+    printed = out.stderr.split(f"warning: {path}: ", 1)[1].splitlines()[0]
+    with open_store(db) as store, store.session() as s:
+        (batch,) = crud.list_batches(session=s)
+        assert batch.warnings == [printed]
+    report, markdown = tmp_path / "report.html", tmp_path / "report.md"
+    made = CliRunner().invoke(app, ["report", str(batch.id), "--db", db, "-o", str(report),
+                                    "--markdown", str(markdown)])
+    assert made.exit_code == 0, made.output
+    assert "<h2>Warnings</h2>" in report.read_text() and "cross.net.xml (left from" in report.read_text()
+    assert f"- batch {batch.id} (cross-left, rule): {printed}" in markdown.read_text()
+
+
+def test_a_batch_keeps_the_warning_its_network_gave_when_it_was_created(
+        store: Store, spec: ScenarioSpec, tmp_path: Path) -> None:
+    """A batch on cross.net.xml (netconvert's left turns up to 3.1 m off the candidate paths, the
+    net given relative to base_dir) stores the warning; one on a catalogue net stores none."""
+    from support import SUMO_CROSS_NET, sumo_example
+
+    (tmp_path / "cross.net.xml").write_bytes(sumo_example(SUMO_CROSS_NET).read_bytes())
+    path = tmp_path / "cross-left.yaml"
+    path.write_text(yaml.safe_dump({**TINY, "name": "cross-left", "intersection": {"net": "cross.net.xml"}}))
+    flagged = create_batch_for(store, spec=load_scenario(path), policy="rule", runs=1, base_dir=path.parent)
+    catalogue = create_batch_for(store, spec=spec, policy="rule", runs=1)
+    with store.session() as s:
+        (warning,) = crud.get_batch(session=s, batch_id=flagged).warnings
+        assert warning.startswith("cross.net.xml (left from") and "crossroads net check" in warning
+        assert crud.get_batch(session=s, batch_id=catalogue).warnings is None

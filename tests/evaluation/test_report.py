@@ -163,6 +163,31 @@ def test_escapes_user_text_and_unsafe_links() -> None:
     assert csv_text["scenario"] == f"overspeed-10{evil}"
 
 
+def test_warnings_come_first_with_their_batch_escaped_and_only_when_there_are_some() -> None:
+    results = [{"seed": i, "outcome": "passed", "travel_time_s": 9.0} for i in range(4)]
+    evil = '<script>alert("lanes")</script>'
+    warned = BatchRow.from_results("cross-left", "rule", "7", results,
+                                   warnings=[f"internal lanes 3.15 m off {evil}", "second"])
+    quiet = BatchRow.from_results("cross-left", "models/apg.pt", "8", results)
+    assert quiet.warnings == []
+    page = render_html([quiet, warned])
+    start, end = page.index("<h2>Warnings</h2>"), page.index("<h2>Results</h2>")
+    assert start < end  # near the top: read before the numbers
+    block = page[start:end]
+    assert block.count('<td class="l"><code>7</code></td><td class="l">cross-left</td><td class="l">rule</td>') == 2
+    assert "internal lanes 3.15 m off &lt;script&gt;alert(&quot;lanes&quot;)&lt;/script&gt;" in block
+    assert "second" in block and "<code>8</code>" not in block and "<script>" not in page
+    assert "Warnings" not in render_html([quiet])
+    # the CSV: one column, the batch's warnings joined
+    assert [line["warnings"] for line in csv_rows([warned, quiet])[1]] == [
+        f"internal lanes 3.15 m off {evil}; second", ""]
+    # and through mappings (JSON): kept, or none when absent
+    as_dict = {"scenario": "cross-left", "policy": "rule", "batch_id": 7, "summary": warned.summary.to_json(),
+               "warnings": warned.warnings}
+    assert BatchRow.coerce(as_dict).warnings == warned.warnings
+    assert BatchRow.coerce({**as_dict, "warnings": None}).warnings == []
+
+
 def test_rows_from_mappings_and_duplicate_batches() -> None:
     rows = synthetic_suite(runs=40)[:2]
     again = BatchRow.from_results("overspeed-10", "models/apg.pt", "rerun", [

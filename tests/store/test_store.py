@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from alembic import command
 from alembic.autogenerate import compare_metadata
 from alembic.runtime.migration import MigrationContext
 from sqlalchemy import func, inspect, select
@@ -15,8 +16,8 @@ from sqlalchemy.exc import IntegrityError
 from crossroads.evaluation.episode import EpisodeResult
 from crossroads.evaluation.scenario import ScenarioSpec, content_hash, validate_scenario
 from crossroads.store import Store, StoreError, crud, open_store
-from crossroads.store.db import head_revision
-from crossroads.store.tables import Base, Episode, Scenario, Trace
+from crossroads.store.db import alembic_config, head_revision
+from crossroads.store.tables import Base, Batch, Episode, Scenario, Trace
 
 TABLES = {"scenarios", "policies", "batches", "episodes", "traces"}
 
@@ -26,11 +27,12 @@ def make_spec(seed: int = 0, name: str = "store-test") -> ScenarioSpec:
                               "task": "left", "runs": 5, "seed": seed}, check_references=False)
 
 
-def make_batch(store: Store, *, runs: int = 5, seed: int = 0) -> int:
+def make_batch(store: Store, *, runs: int = 5, seed: int = 0, warnings: tuple[str, ...] = ()) -> int:
     with store.session() as s:
         scenario = crud.get_or_create_scenario(session=s, spec=make_spec(seed))
         policy = crud.get_or_create_policy(session=s, ref="rule")
-        return crud.create_batch(session=s, scenario=scenario, policy=policy, runs=runs).id
+        return crud.create_batch(session=s, scenario=scenario, policy=policy, runs=runs,
+                                 warnings=warnings).id
 
 
 def result(outcome: str = "passed", seed: int = 1, **kw: Any) -> EpisodeResult:
@@ -52,6 +54,51 @@ def test_opening_again_is_a_no_op(db_url: str) -> None:
     for _ in range(2):
         with open_store(db_url) as store:
             assert store.revision() == head_revision()
+
+
+def _downgrade(store: Store, revision: str) -> None:
+    with store.engine.begin() as connection:
+        command.downgrade(alembic_config(connection), revision)
+
+
+def test_batch_warnings_migrate_down_and_up_keeping_every_other_row(empty_db_url: str) -> None:
+    """0002 adds batches.warnings and its downgrade drops only that column: the batches and their
+    episodes stay (SQLite included, where copying the table would cascade to the episodes), and
+    opening the store again migrates it back to head, the dropped warnings gone."""
+    with open_store(empty_db_url) as store:
+        batch_id = make_batch(store, runs=2, seed=21, warnings=("lanes off the paths",))
+        with store.session() as s:
+            crud.record_episode(session=s, batch_id=batch_id, run_index=0, seed=1, result=result())
+        _downgrade(store, "0001_initial")
+        assert store.revision() == "0001_initial"
+        assert "warnings" not in {c["name"] for c in inspect(store.engine).get_columns("batches")}
+        with store.engine.connect() as conn:
+            assert conn.exec_driver_sql("SELECT id, runs FROM batches").all() == [(batch_id, 2)]
+            assert conn.exec_driver_sql("SELECT batch_id, run_index FROM episodes").all() == [(batch_id, 0)]
+    with open_store(empty_db_url) as store:  # a store of before the column: migrated on opening
+        assert store.revision() == head_revision() == "0002_batch_warnings"
+        with store.engine.connect() as conn:
+            assert compare_metadata(MigrationContext.configure(conn), Base.metadata) == []
+        with store.session() as s:
+            batch = crud.get_batch(session=s, batch_id=batch_id)
+            assert batch is not None and batch.warnings is None and batch.runs == 2
+            assert crud.done_run_indices(session=s, batch_id=batch_id) == {0}
+
+
+def test_a_batch_keeps_its_warnings(store: Store) -> None:
+    texts = ("cross.net.xml (left from 1si): SUMO's internal lanes run <3.15 m> off", "ünïcode — 2")
+    warned = make_batch(store, runs=1, seed=22, warnings=texts)
+    quiet = make_batch(store, runs=1, seed=22)
+    with store.session() as s:  # a new session: read from the database, not the identity map
+        assert crud.get_batch(session=s, batch_id=warned).warnings == list(texts)
+        assert crud.get_batch(session=s, batch_id=quiet).warnings is None
+        # none is SQL NULL, not the JSON text 'null': a query for batches without warnings finds it
+        assert quiet in s.scalars(select(Batch.id).where(Batch.warnings.is_(None))).all()
+        assert warned not in s.scalars(select(Batch.id).where(Batch.warnings.is_(None))).all()
+        scenario = crud.get_or_create_scenario(session=s, spec=make_spec(22))
+        policy = crud.get_or_create_policy(session=s, ref="rule")
+        with pytest.raises(TypeError, match="not one string"):
+            crud.create_batch(session=s, scenario=scenario, policy=policy, runs=1, warnings="letters")
 
 
 def test_sqlite_runs_in_wal_mode_with_foreign_keys(tmp_path: Path) -> None:

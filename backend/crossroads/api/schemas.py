@@ -122,6 +122,12 @@ class BatchPublic(BaseModel):
     queue_position: int | None = Field(
         None, description="while the batch waits for a free slot (settings: max_concurrent_batches): "
         "1 = next to start; null otherwise")
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="what the batch's network gave reason to warn about when the batch was created "
+        "(e.g. SUMO's internal lanes of the ego's movements running more than half the ego's width "
+        "from its candidate paths: the scenario runs, but SUMO sees the ego elsewhere than it "
+        "drives); kept with the batch, whatever the network has become since; empty when none")
     summary: BatchSummary | None = Field(None, description="only in GET /batches/{id}")
 
 

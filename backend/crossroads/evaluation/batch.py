@@ -132,13 +132,17 @@ def summarize_batch(store: Store, batch_id: int) -> BatchResult:
 def create_batch_for(store: Store, *, spec: Any, policy: str, runs: int | None = None,
                      traces: TraceMode = "failed", base_dir: str | Path | None = None) -> int:
     """Register ``spec`` and ``policy`` (idempotently) and a queued batch of ``runs`` (default
-    ``spec.runs``) runs; returns its id."""
+    ``spec.runs``) runs, with the warnings of its network as it is now
+    (:func:`~crossroads.evaluation.network_checks.batch_warnings`); returns its id."""
+    from crossroads.evaluation.network_checks import batch_warnings
+
+    warnings = batch_warnings(spec, base_dir)
     with store.session() as session:
         scenario = crud.get_or_create_scenario(session=session, spec=spec)
         pol = crud.get_or_create_policy(session=session, ref=policy)
         batch = crud.create_batch(session=session, scenario=scenario, policy=pol,
                                   runs=spec.runs if runs is None else runs, traces=traces,
-                                  base_dir=base_dir)
+                                  base_dir=base_dir, warnings=warnings)
         return batch.id
 
 

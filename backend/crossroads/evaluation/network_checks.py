@@ -11,6 +11,8 @@ of its own, so a check after the first costs next to nothing.
 
 from __future__ import annotations
 
+import json
+import logging
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -26,6 +28,8 @@ from crossroads.sim.signals import SignalError, TlProgram, read_program
 from crossroads.validation import SpecError
 
 Problems = list[tuple[str, str]]
+
+log = logging.getLogger(__name__)
 
 
 @lru_cache(maxsize=64)
@@ -140,5 +144,37 @@ def internal_lane_warning(spec: ScenarioSpec, base_dir: str | Path | None = None
     if approach is None:
         return None
     offsets = internal_lane_offsets(junction, rho=spec.rho, approach=approach, turn=spec.task)
-    name = spec.intersection if isinstance(spec.intersection, str) else junction.net_file.name
+    name = spec.intersection if isinstance(spec.intersection, str) else net_label(junction.net_file)
     return offset_warning(offsets, f"{name} ({spec.task} from {approach.id})")
+
+
+def net_label(net_file: str | Path) -> str:
+    """How a warning names a network file: its file name; for a studio upload (stored as
+    ``<sha256>.net.xml`` with ``<sha256>.json`` beside it keeping the name it was uploaded under,
+    ``api.routes.uploads``) that name and the digest's start, so a report read later says which
+    network the user meant."""
+    path = Path(net_file)
+    try:
+        uploaded = json.loads(path.with_name(path.name.removesuffix(".net.xml") + ".json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return path.name
+    name = uploaded.get("name") if isinstance(uploaded, dict) else None
+    return f"{name} (upload {path.name[:12]})" if isinstance(name, str) and name else path.name
+
+
+def batch_warnings(spec: ScenarioSpec, base_dir: str | Path | None = None) -> list[str]:
+    """What a batch of ``spec`` keeps beside its results: :func:`internal_lane_warning` of the
+    network as it is now (a report read later must say it, whatever the network has become).
+
+    Empty when there is nothing to say, and when measuring fails on an odd network (a degenerate
+    lane or path shape raises ValueError, as PlanningError and JunctionError do): a warning must
+    never keep a batch from being created. Anything else is no odd shape and is raised; what is
+    wrong with the network itself, :func:`network_problems` has rejected before.
+    """
+    try:
+        warning = internal_lane_warning(spec, base_dir)
+    except ValueError as exc:
+        log.warning("%s: could not measure the internal lanes against the candidate paths: %s",
+                    spec.name, exc)
+        return []
+    return [] if warning is None else [warning]

@@ -1,8 +1,9 @@
 """Evaluation reports: one self-contained HTML file (and a CSV) over any set of batches.
 
 A :class:`BatchRow` describes one batch (scenario, policy, batch id, its :class:`BatchSummary`, the
-travel times of its passed episodes, its failed episodes, and its outcome per seed for paired
-comparisons); :meth:`BatchRow.from_results` builds one from episode results. :func:`render_html`
+travel times of its passed episodes, its failed episodes, its outcome per seed for paired
+comparisons, and the warnings stored with it); :meth:`BatchRow.from_results` builds one from
+episode results. :func:`render_html` lists the batches' warnings first (when there are any), then
 lays the rows out like the paper's table (SPEC §8): one line per case (scenario), per policy the
 pass rate with its Wilson 95 % interval and the travel time mean ± std, with the paper's own numbers
 beside ours where the case and policy match the paper's. Then come plots (pass rate against the
@@ -112,7 +113,9 @@ class FailedEpisode:
 
 @dataclass(frozen=True)
 class BatchRow:
-    """One batch of a report. ``case`` defaults to :func:`case_label` of the scenario name."""
+    """One batch of a report. ``case`` defaults to :func:`case_label` of the scenario name;
+    ``warnings``: what its network gave reason to warn about when the batch was created (e.g.
+    SUMO's internal lanes off the ego's paths), shown in the report so its numbers are read with it."""
 
     scenario: str
     policy: str
@@ -122,6 +125,7 @@ class BatchRow:
     travel_times: list[float] = field(default_factory=list)  # [s] of the passed episodes
     outcomes: dict[int, str] = field(default_factory=dict)  # seed → outcome ("error" if crashed)
     case: str | None = None
+    warnings: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         if self.case is None:
@@ -140,7 +144,8 @@ class BatchRow:
 
     @classmethod
     def from_results(cls, scenario: str, policy: str, batch_id: str, results: Iterable[Any], *,
-                     confidence: float = 0.95, case: str | None = None) -> BatchRow:
+                     confidence: float = 0.95, case: str | None = None,
+                     warnings: Iterable[str] = ()) -> BatchRow:
         """A row from episode results (objects or mappings as in :mod:`crossroads.evaluation.metrics`).
 
         Failed episodes take their id from ``id``/``episode_id`` (else the seed), their detail from
@@ -167,7 +172,8 @@ class BatchRow:
                                         trace if isinstance(trace, str) else None))
         return cls(scenario=scenario, policy=policy, batch_id=str(batch_id),
                    summary=summarize(items, confidence), failed=failed,
-                   travel_times=travel_times(items), outcomes=outcomes, case=case)
+                   travel_times=travel_times(items), outcomes=outcomes, case=case,
+                   warnings=[str(w) for w in warnings])
 
     @classmethod
     def coerce(cls, row: BatchRow | Mapping[str, Any]) -> BatchRow:
@@ -184,6 +190,7 @@ class BatchRow:
         data["travel_times"] = [float(t) for t in data.get("travel_times") or []]
         data["outcomes"] = {int(k): str(v) for k, v in (data.get("outcomes") or {}).items()}
         data["batch_id"] = str(data["batch_id"])
+        data["warnings"] = [str(w) for w in data.get("warnings") or []]
         return cls(**data)
 
 
@@ -407,6 +414,8 @@ td.paper,th.paper{background:#f7f7fb;color:#555}
 .off{color:#b00020;font-weight:600}.muted{color:#777;font-size:.85em}
 .sig{font-weight:700}img.plot{max-width:100%;border:1px solid #eee;margin:.5em 0}
 details{margin:.4em 0}summary{cursor:pointer}code{font-size:.9em}
+.warnings{background:#fff8e6;border-left:4px solid #d9a400;padding:.2em 1em;margin:1em 0}
+.warnings h2{margin-top:.6em;border:0}.warnings table{background:#fff}
 """
 
 
@@ -547,6 +556,20 @@ def _batch_table(rows: Sequence[BatchRow]) -> str:
     return f"<table><thead>{head}</thead><tbody>{''.join(body)}</tbody></table>"
 
 
+def _warnings_section(rows: Sequence[BatchRow]) -> str:
+    """Every batch's warnings, one line each; empty when no batch has any."""
+    lines = [(r, w) for r in sorted(rows, key=_case_sort_key) for w in r.warnings]
+    if not lines:
+        return ""
+    body = "".join(f'<tr><td class="l"><code>{_esc(r.batch_id)}</code></td><td class="l">{_esc(r.scenario)}</td>'
+                   f'<td class="l">{_esc(r.policy)}</td><td class="l">{_esc(w)}</td></tr>' for r, w in lines)
+    return ('<section class="warnings"><h2>Warnings</h2>'
+            '<p class="muted">Recorded when each batch was created, from its network as it was then: '
+            "the batch ran, but read its numbers with these in mind.</p>"
+            '<table><thead><tr><th class="l">batch</th><th class="l">scenario</th><th class="l">policy</th>'
+            f'<th class="l">warning</th></tr></thead><tbody>{body}</tbody></table></section>')
+
+
 def _failed_section(rows: Sequence[BatchRow], trace_link: TraceLink | None) -> str:
     parts = []
     for r in sorted(rows, key=_case_sort_key):
@@ -592,6 +615,8 @@ def render_html(rows: Iterable[BatchRow | Mapping[str, Any]], *, title: str = "C
     out.append(f"<p>{len(rows)} batch{'es' if len(rows) != 1 else ''}, {n_runs} episodes"
                f"{f', {n_err} errored (left out of the pass rates)' if n_err else ''}; "
                f"policies: {', '.join(_esc(c) for c in columns)}.</p>")
+    if warnings := _warnings_section(rows):
+        out.append(warnings)
 
     out.append("<h2>Results</h2>")
     out.append("<p class=\"muted\">Pass rate = passed / (runs − errored) with its Wilson 95 % interval; "
@@ -638,6 +663,7 @@ def render_html(rows: Iterable[BatchRow | Mapping[str, Any]], *, title: str = "C
 CSV_FIELDS: tuple[str, ...] = (
     "batch_id", "scenario", "case", "policy", "runs", "errors", "valid", "passed", "pass_rate",
     "wilson_low", "wilson_high", "confidence", "travel_mean_s", "travel_std_s", "travel_n",
+    "warnings",  # the batch's warnings joined with "; " (empty: none)
 )
 PAPER_CSV_FIELDS: tuple[str, ...] = ("paper_policy", "paper_pass_rate", "paper_travel_mean_s",
                                      "paper_travel_std_s")
@@ -667,7 +693,7 @@ def csv_rows(rows: Iterable[BatchRow | Mapping[str, Any]], *,
             "runs": s.runs, "errors": s.errors, "valid": s.valid, "passed": s.passed,
             "pass_rate": s.pass_rate, "wilson_low": s.wilson_low, "wilson_high": s.wilson_high,
             "confidence": s.confidence, "travel_mean_s": s.travel_mean_s, "travel_std_s": s.travel_std_s,
-            "travel_n": s.travel_n,
+            "travel_n": s.travel_n, "warnings": "; ".join(r.warnings),
             **{f"outcome_{k}": s.outcomes.get(k, 0) for k in keys},
             "paper_policy": r.paper_policy if cell else None,
             "paper_pass_rate": cell.pass_rate if cell else None,

@@ -1,6 +1,7 @@
 """The report's main table as Markdown (for READMEs and issue notes): one row per scenario, per
 policy its pass rate with the Wilson interval and its travel time, the paper's numbers beside them
-where the paper has the case (SPEC §8). Same layout as the HTML report's main table."""
+where the paper has the case (SPEC §8). Same layout as the HTML report's main table, and like the
+HTML report, the batches' stored warnings come first when there are any."""
 
 from __future__ import annotations
 
@@ -32,6 +33,16 @@ def _travel(s: BatchSummary) -> str:
     return "—" if s.travel_mean_s is None else f"{_num(s.travel_mean_s)} ± {_num(s.travel_std_s)}"
 
 
+def _warnings(rows: list[BatchRow]) -> list[str]:
+    """A list item per stored warning (batch, scenario, policy, text), under a heading; none if none."""
+    items = [f"- batch {row.batch_id} ({row.scenario}, {row.policy}): {' '.join(w.split())}"
+             for row in rows for w in row.warnings]  # one line each, whatever the text's breaks
+    if not items:
+        return []
+    return ["**Warnings** (recorded when each batch was created, from its network as it was then):",
+            "", *items, ""]
+
+
 def render_markdown(rows: Iterable[BatchRow | Mapping[str, Any]], paper: PaperTable = PAPER_TABLE) -> str:
     """A GitHub-flavoured Markdown table of the batches (see the module docstring)."""
     rows = sorted((BatchRow.coerce(r) for r in rows), key=_case_sort_key)
@@ -44,7 +55,7 @@ def render_markdown(rows: Iterable[BatchRow | Mapping[str, Any]], paper: PaperTa
     for col in columns:
         head += [f"{col} pass rate [95 % CI]"] + (["paper"] if col in with_paper else [])
         head += [f"{col} travel time [s]"] + (["paper"] if col in with_paper else [])
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines = [*_warnings(rows), "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     first = {r.scenario: r for r in rows}
     for scenario in dict.fromkeys(r.scenario for r in rows):
         cells = [_row_title(first[scenario])]

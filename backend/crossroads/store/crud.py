@@ -133,17 +133,21 @@ def get_policy(*, session: Session, policy_id: int) -> Policy | None:
 
 def create_batch(*, session: Session, scenario: Scenario, policy: Policy, runs: int,
                  base_seed: int | None = None, traces: str = "failed", base_dir: str | Path | None = None,
-                 workers: int | None = None, executor: str | None = None) -> Batch:
-    """A queued batch of ``runs`` runs (base seed: the scenario's own ``seed``)."""
+                 workers: int | None = None, executor: str | None = None,
+                 warnings: Sequence[str] = ()) -> Batch:
+    """A queued batch of ``runs`` runs (base seed: the scenario's own ``seed``), with the
+    ``warnings`` its network gave now (stored as NULL when there are none)."""
     if runs < 1:
         raise ValueError(f"runs must be >= 1, got {runs}")
     if traces not in TRACE_MODES:
         raise ValueError(f"traces must be one of {', '.join(TRACE_MODES)}, got {traces!r}")
+    if isinstance(warnings, str):  # a str is a Sequence too: it would be stored letter by letter
+        raise TypeError("warnings must be a sequence of strings, not one string")
     batch = Batch(scenario_id=scenario.id, policy_id=policy.id, runs=runs,
                   base_seed=int(scenario.spec["seed"] if base_seed is None else base_seed),
                   status="queued", traces=traces,
                   base_dir=None if base_dir is None else str(Path(base_dir).resolve()),
-                  workers=workers, executor=executor)
+                  workers=workers, executor=executor, warnings=[str(w) for w in warnings] or None)
     session.add(batch)
     session.commit()
     return batch

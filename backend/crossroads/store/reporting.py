@@ -14,7 +14,8 @@ class UnknownBatchError(LookupError):
 
 
 def report_rows(store: Store, batch_ids: Sequence[int]) -> list[BatchRow]:
-    """One report row per batch: its scenario, policy, summary, failed episodes and traces."""
+    """One report row per batch: its scenario, policy, summary, failed episodes, traces and the
+    warnings stored with it."""
     rows = []
     with store.session() as session:
         for batch_id in batch_ids:
@@ -32,5 +33,5 @@ def report_rows(store: Store, batch_ids: Sequence[int]) -> list[BatchRow]:
                 "trace_path": e.trace.path if e.trace is not None else None,
             } for e in episodes]
             rows.append(BatchRow.from_results(batch.scenario.name, batch.policy.name, str(batch_id),
-                                              results))
+                                              results, warnings=batch.warnings or ()))
     return rows

@@ -107,6 +107,10 @@ class Batch(Base):
     executor: Mapped[str | None] = mapped_column(String(200), nullable=True)  # local | ray:<address>
     workers: Mapped[int | None] = mapped_column(Integer, nullable=True)
     error: Mapped[str | None] = mapped_column(Text, nullable=True)  # why the batch failed
+    # What the network gave reason to warn about when the batch was created (e.g. SUMO's internal
+    # lanes off the ego's paths), kept with it: a report read later must say it, whatever the network
+    # has become. None is SQL NULL (none_as_null), not JSON null: "no warnings" reads one way.
+    warnings: Mapped[list[str] | None] = mapped_column(JSON(none_as_null=True), nullable=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)

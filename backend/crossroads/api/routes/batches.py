@@ -33,6 +33,7 @@ from crossroads.api.schemas import (
     EpisodePublic,
 )
 from crossroads.evaluation.batch import summarize_batch
+from crossroads.evaluation.network_checks import batch_warnings
 from crossroads.store import Store, crud
 from crossroads.store.crud import FINISHED_STATUSES
 from crossroads.store.tables import BATCH_STATUSES, Batch
@@ -67,7 +68,8 @@ def _public(session: Session, batch: Batch, jobs: JobRegistry, summary: BatchSum
         status=batch.status, runs=batch.runs, traces=batch.traces, workers=batch.workers,
         executor=batch.executor, error=batch.error, created_at=batch.created_at,
         started_at=batch.started_at, finished_at=batch.finished_at, progress=progress,
-        queue_position=jobs.queue_position(batch.id), summary=summary)
+        queue_position=jobs.queue_position(batch.id), warnings=list(batch.warnings or []),
+        summary=summary)
 
 
 def _summary(store: Store, batch_id: int) -> BatchSummary:
@@ -94,10 +96,11 @@ def start_batch(body: BatchCreate, session: SessionDep, store: StoreDep, jobs: J
         if scenario is None:
             raise unprocessable([("scenario_id", f"no scenario {body.scenario_id}")])
         spec = parse_scenario(scenario.spec, settings, prefix=("body", "scenario_id"))
+    warnings = batch_warnings(spec, settings.data_dir)  # the network as it is now, kept with the batch
     policy = crud.get_or_create_policy(session=session, ref=ref)
     batch = crud.create_batch(session=session, scenario=scenario, policy=policy,
                               runs=body.runs or spec.runs, traces=body.traces,
-                              base_dir=settings.data_dir, workers=body.workers)
+                              base_dir=settings.data_dir, workers=body.workers, warnings=warnings)
     jobs.submit(batch.id, workers=body.workers)
     return BatchAccepted(id=batch.id, status=batch.status, url=f"/api/batches/{batch.id}",
                          events=f"/api/batches/{batch.id}/events",
