@@ -154,6 +154,7 @@ def test_cli_evaluate_json(scenario_file: Path, tmp_path: Path, monkeypatch: pyt
     assert batch["scenario"] == "tiny-left" and batch["policy"] == "rule"
     assert 0.0 <= batch["wilson_low"] <= batch["wilson_high"] <= 1.0
     assert sum(batch["outcome_counts"].values()) == 2
+    assert batch["warnings"] == []  # the catalogue's internal lanes follow the paths
     with open_store(db) as store:
         assert summarize_batch(store, batch["batch_id"]).recorded == 2
 
@@ -211,6 +212,7 @@ def test_cli_evaluate_warns_when_the_egos_internal_lanes_run_off_its_paths(
     with open_store(db) as store, store.session() as s:
         (batch,) = crud.list_batches(session=s)
         assert batch.warnings == [printed]
+        assert summarize_batch(store, batch.id).warnings == [printed]  # what --json prints
     report, markdown = tmp_path / "report.html", tmp_path / "report.md"
     made = CliRunner().invoke(app, ["report", str(batch.id), "--db", db, "-o", str(report),
                                     "--markdown", str(markdown)])

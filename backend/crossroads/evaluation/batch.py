@@ -72,7 +72,8 @@ class BatchResult:
     ``pass_rate`` = passed / (recorded − errors): an episode that crashed says nothing about the
     policy; ``wilson_low``/``wilson_high``: its Wilson 95 % interval
     (:func:`crossroads.evaluation.metrics.wilson_interval`). Travel time over the passed episodes:
-    mean and sample standard deviation (ddof = 1; None below two) [s].
+    mean and sample standard deviation (ddof = 1; None below two) [s]. ``warnings``: what the
+    batch's network gave reason to warn about when it was created (``batches.warnings``).
     """
 
     batch_id: int
@@ -90,6 +91,7 @@ class BatchResult:
     travel_time_mean_s: float | None
     travel_time_std_s: float | None
     travel_times_s: list[float] = field(repr=False, default_factory=list)
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def judged(self) -> int:
@@ -126,7 +128,8 @@ def summarize_batch(store: Store, batch_id: int) -> BatchResult:
             status=batch.status, runs=batch.runs, recorded=recorded, errors=errors, passed=passed,
             pass_rate=passed / judged if judged else None, wilson_low=low, wilson_high=high,
             outcome_counts={o: counts.get(o, 0) for o in EPISODE_OUTCOMES},
-            travel_time_mean_s=mean, travel_time_std_s=std, travel_times_s=travel)
+            travel_time_mean_s=mean, travel_time_std_s=std, travel_times_s=travel,
+            warnings=list(batch.warnings or []))
 
 
 def create_batch_for(store: Store, *, spec: Any, policy: str, runs: int | None = None,
