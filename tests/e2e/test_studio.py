@@ -211,4 +211,15 @@ def test_upload_a_network_and_drive_it_live(studio_url: str, browser: Any, artif
     page.wait_for_selector(".live-state[data-status=stopped], .live-state[data-status=done]",
                            timeout=START_TIMEOUT_MS)
     viewer.close()
+
+    # A batch on the uploaded network keeps the upload's warning beside its figures, naming the
+    # net as it was uploaded
+    page.fill("input[name=runs]", "1")
+    _save(page)
+    page.select_option("#policy", "rule")
+    page.click("#run")
+    page.wait_for_selector("#pass-rate", timeout=BATCH_TIMEOUT_MS)
+    warning = page.locator("#batch-warnings").inner_text()
+    assert "cross.net.xml (upload" in warning and "internal lanes" in warning
+    page.screenshot(path=str(artifacts / "13-batch-warning.png"), full_page=True)
     assert not console_errors, console_errors
