@@ -279,7 +279,7 @@ def evaluate(
     from tqdm import tqdm
 
     from crossroads.evaluation.batch import BatchRunner, create_batch_for
-    from crossroads.evaluation.network_checks import internal_lane_warning, network_problems
+    from crossroads.evaluation.network_checks import batch_warnings, network_problems
     from crossroads.evaluation.scenario import load_scenarios
     from crossroads.settings import Settings
     from crossroads.store import open_store
@@ -296,15 +296,17 @@ def evaluate(
         found = load_scenarios(scenario)
         if not found:
             raise fail(f"no scenario files (*.yaml) in {scenario}")
+        warned: list[list[str]] = []
         for path, spec in found:  # what only the network can tell, before any batch starts
             if problems := network_problems(spec, path.parent):
                 raise SpecError(str(path), problems)
-            if warning := internal_lane_warning(spec, path.parent):
+            warned.append(batch_warnings(spec, path.parent))  # measured once: printed and stored
+            for warning in warned[-1]:
                 typer.secho(f"warning: {path}: {warning}", err=True, fg=typer.colors.YELLOW)
-        for path, spec in found:
+        for (path, spec), warnings in zip(found, warned, strict=True):
             for ref in policy or ["rule"]:
-                planned.append(lambda spec=spec, ref=ref, base=path.parent: create_batch_for(
-                    store, spec=spec, policy=ref, runs=runs, traces=traces, base_dir=base))
+                planned.append(lambda spec=spec, ref=ref, base=path.parent, warnings=warnings: create_batch_for(
+                    store, spec=spec, policy=ref, runs=runs, traces=traces, base_dir=base, warnings=warnings))
     results = []
     try:
         for plan in planned:

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
@@ -133,13 +133,16 @@ def summarize_batch(store: Store, batch_id: int) -> BatchResult:
 
 
 def create_batch_for(store: Store, *, spec: Any, policy: str, runs: int | None = None,
-                     traces: TraceMode = "failed", base_dir: str | Path | None = None) -> int:
+                     traces: TraceMode = "failed", base_dir: str | Path | None = None,
+                     warnings: Sequence[str] | None = None) -> int:
     """Register ``spec`` and ``policy`` (idempotently) and a queued batch of ``runs`` (default
-    ``spec.runs``) runs, with the warnings of its network as it is now
-    (:func:`~crossroads.evaluation.network_checks.batch_warnings`); returns its id."""
-    from crossroads.evaluation.network_checks import batch_warnings
+    ``spec.runs``) runs, with ``warnings``: by default those of its network as it is now
+    (:func:`~crossroads.evaluation.network_checks.batch_warnings`; a caller that has measured them
+    for the same spec and base_dir passes them); returns its id."""
+    if warnings is None:
+        from crossroads.evaluation.network_checks import batch_warnings
 
-    warnings = batch_warnings(spec, base_dir)
+        warnings = batch_warnings(spec, base_dir)
     with store.session() as session:
         scenario = crud.get_or_create_scenario(session=session, spec=spec)
         pol = crud.get_or_create_policy(session=session, ref=policy)

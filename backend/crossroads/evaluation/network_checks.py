@@ -148,18 +148,25 @@ def internal_lane_warning(spec: ScenarioSpec, base_dir: str | Path | None = None
     return offset_warning(offsets, f"{name} ({spec.task} from {approach.id})")
 
 
-def net_label(net_file: str | Path) -> str:
-    """How a warning names a network file: its file name; for a studio upload (stored as
-    ``<sha256>.net.xml`` with ``<sha256>.json`` beside it keeping the name it was uploaded under,
-    ``api.routes.uploads``) that name and the digest's start, so a report read later says which
-    network the user meant."""
+def uploaded_name(net_file: str | Path) -> str | None:
+    """The name a studio upload was uploaded under: uploads are stored as ``<sha256>.net.xml`` with
+    ``<sha256>.json`` beside them keeping it (``api.routes.uploads``). None for any other file, or
+    when the record is missing or unreadable."""
     path = Path(net_file)
     try:
-        uploaded = json.loads(path.with_name(path.name.removesuffix(".net.xml") + ".json").read_text(encoding="utf-8"))
+        record = json.loads(path.with_name(path.name.removesuffix(".net.xml") + ".json").read_text(encoding="utf-8"))
     except (OSError, ValueError):
-        return path.name
-    name = uploaded.get("name") if isinstance(uploaded, dict) else None
-    return f"{name} (upload {path.name[:12]})" if isinstance(name, str) and name else path.name
+        return None
+    name = record.get("name") if isinstance(record, dict) else None
+    return name if isinstance(name, str) and name else None
+
+
+def net_label(net_file: str | Path) -> str:
+    """How a warning names a network file: its file name; for a studio upload the name it was
+    uploaded under and the digest's start, so a report read later says which network the user meant."""
+    path = Path(net_file)
+    name = uploaded_name(path)
+    return path.name if name is None else f"{name} (upload {path.name[:12]})"
 
 
 def batch_warnings(spec: ScenarioSpec, base_dir: str | Path | None = None) -> list[str]:

@@ -29,7 +29,7 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, HTTPException, Query, Request
 
 from crossroads.api.deps import OptionsDep, SettingsDep
-from crossroads.evaluation.network_checks import program_json
+from crossroads.evaluation.network_checks import program_json, uploaded_name
 from crossroads.api.routes.intersections import geometry_with_program, internal_lanes_of, paths_of, signal_links
 from crossroads.constants import RHO_BEZIER
 from crossroads.network.export import junction_geometry
@@ -176,11 +176,7 @@ def _write_name(target_dir: Path, digest: str, filename: str) -> None:
 
 
 def _uploaded_name(target_dir: Path, digest: str) -> str:
-    try:
-        name = json.loads((target_dir / f"{digest}.json").read_text(encoding="utf-8")).get("name")
-    except (OSError, ValueError, AttributeError):
-        name = None
-    return name if isinstance(name, str) and name else f"{digest[:12]}.net.xml"
+    return uploaded_name(target_dir / f"{digest}.net.xml") or f"{digest[:12]}.net.xml"
 
 
 def _uploaded_path(digest: str, data_dir: Path) -> Path:
