@@ -21,6 +21,15 @@ function showCancel(batchId: number | null): void {
   button.dataset.batch = batchId == null ? "" : String(batchId);
 }
 
+/** The warnings of the batch being followed, beside its progress bar, as soon as the API says them
+ *  (the 202 answer, then every progress event): a network warning is worth seeing before the runs. */
+function showProgressWarnings(warnings: string[] | undefined): void {
+  const list = $("#progress-warnings");
+  const items = warnings ?? [];
+  list.hidden = !items.length;
+  list.innerHTML = items.map((w) => `<li>Warning: ${esc(w)}</li>`).join("");
+}
+
 /** Start a batch of the saved scenario and follow it. */
 export async function runBatch(scenarioId: number, policy: string): Promise<void> {
   clearErrors();
@@ -29,6 +38,7 @@ export async function runBatch(scenarioId: number, policy: string): Promise<void
   try {
     const b = await post("/api/batches", { scenario_id: scenarioId, policy, traces: "all" });
     follow(b.id, () => (button.disabled = false));
+    showProgressWarnings(b.warnings);
     void refreshBatches();
   } catch (e) {
     showErrors(e);
@@ -44,11 +54,13 @@ export function follow(batchId: number, done: () => void): void {
   bar.hidden = false;
   bar.value = 0;
   text.textContent = `batch #${batchId}: starting…`;
+  showProgressWarnings([]);
   showCancel(batchId);
   const source = new EventSource(`/api/batches/${batchId}/events`);
   source.addEventListener("progress", (ev) => {
     const p = JSON.parse((ev as MessageEvent).data);
     bar.value = p.fraction;
+    showProgressWarnings(p.warnings);
     if ($("#cancel").dataset.state !== "cancelling" || FINISHED.includes(p.status)) text.textContent = progressLine(batchId, p);
   });
   source.addEventListener("end", async (ev) => {

@@ -86,6 +86,7 @@ def test_tiny_batch_end_to_end(client: TestClient, tiny_batch: int) -> None:
     assert progress[-1]["done"] == progress[-1]["total"] == 2
     end = events[-1][1]
     assert end["status"] == "done" and end["summary"]["recorded"] == 2
+    assert all(data["warnings"] == [] for _, data in events)
 
     body = client.get(f"/api/batches/{tiny_batch}").json()
     assert body["status"] == "done" and body["policy"] == "rule" and body["scenario"] == "api-tiny-left"
@@ -165,8 +166,11 @@ def test_a_batch_on_a_net_whose_internal_lanes_run_off_the_paths_keeps_the_warni
                                                  "traces": "none"})
     assert response.status_code == 202, response.text
     batch_id = response.json()["id"]
+    assert response.json()["warnings"] == [expected["message"]]  # said at once, before any run
     body = wait_for(batch_id, ("done", "failed", "cancelled"))
     assert body["status"] == "done" and body["warnings"] == [expected["message"]]
+    events = _events(client, batch_id)  # a client that only follows the stream sees it too
+    assert events and all(data["warnings"] == body["warnings"] for _, data in events)
     # named as uploaded, with the digest's start; the server's data directory stays out of it
     assert f"cross.net.xml (upload {upload['id'][:12]}) (left from" in expected["message"] and str(data_dir) not in expected["message"]
     listed = {b["id"]: b for b in client.get("/api/batches", params={"limit": 1000}).json()}

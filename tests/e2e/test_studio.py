@@ -111,6 +111,7 @@ def test_author_run_and_play_back(studio_url: str, browser: Any, artifacts: Path
     assert re.fullmatch(r"\d+\.\d %", page.inner_text("#pass-rate"))
     assert page.inner_text("#wilson").startswith("[")
     assert page.locator("#batch-warnings").count() == 0  # a catalogue net: nothing stored to warn of
+    assert page.locator("#progress-warnings").is_hidden()
     assert page.locator("#episodes tbody tr").count() == 2
     page.wait_for_selector("#compare table.compare")
     page.screenshot(path=str(artifacts / "05-results.png"), full_page=True)
@@ -221,5 +222,7 @@ def test_upload_a_network_and_drive_it_live(studio_url: str, browser: Any, artif
     page.wait_for_selector("#pass-rate", timeout=BATCH_TIMEOUT_MS)
     warning = page.locator("#batch-warnings").inner_text()
     assert "cross.net.xml (upload" in warning and "internal lanes" in warning
+    # said beside the progress bar too, from the 202 answer on (before any run had ended)
+    assert page.locator("#progress-warnings").inner_text() == warning
     page.screenshot(path=str(artifacts / "13-batch-warning.png"), full_page=True)
     assert not console_errors, console_errors

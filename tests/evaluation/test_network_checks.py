@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
+import pytest
+
+from crossroads.evaluation import network_checks
 from crossroads.evaluation.network_checks import batch_warnings, internal_lane_warning, network_problems
 from crossroads.evaluation.scenario import ScenarioSpec, validate_scenario
+from crossroads.planning.routes import PlanningError
 from support import SUMO_CROSS_NET, sumo_example
 
 
@@ -32,3 +37,28 @@ def test_a_batch_on_a_net_whose_internal_lanes_run_off_the_paths_keeps_the_warni
 def test_a_batch_on_a_catalogue_net_keeps_none() -> None:
     """The catalogue's builds draw every internal lane along its candidate path."""
     assert batch_warnings(left_turn("c_three_lane")) == []
+
+
+def test_a_network_that_cannot_be_measured_still_gets_its_batch(monkeypatch: pytest.MonkeyPatch,
+                                                                 caplog: pytest.LogCaptureFixture) -> None:
+    """A degenerate shape makes the measurement raise ValueError (PlanningError, JunctionError): the
+    batch is created without the warning, and the log says why. No real net found here raises it
+    (single-point, repeated-point and NaN internal lanes all measure), so the measurement is
+    replaced by one that raises, as PlanningError would."""
+    def degenerate(spec: ScenarioSpec, base_dir: object = None) -> str | None:
+        raise PlanningError("lane 'x' has a zero-length shape")
+
+    monkeypatch.setattr(network_checks, "internal_lane_warning", degenerate)
+    with caplog.at_level(logging.WARNING, logger=network_checks.log.name):
+        assert batch_warnings(left_turn("c_three_lane")) == []
+    assert "could not measure the internal lanes" in caplog.text and "zero-length shape" in caplog.text
+
+
+def test_anything_but_an_odd_shape_is_raised(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Only ValueError is taken for an odd shape: a bug elsewhere is not hidden as 'no warning'."""
+    def broken(spec: ScenarioSpec, base_dir: object = None) -> str | None:
+        raise KeyError("lanes")
+
+    monkeypatch.setattr(network_checks, "internal_lane_warning", broken)
+    with pytest.raises(KeyError):
+        batch_warnings(left_turn("c_three_lane"))

@@ -78,6 +78,11 @@ class BatchAccepted(BaseModel):
     events: str
     queue_position: int | None = Field(
         None, description="set when the batch waits for a free slot (1 = next to start)")
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="what the batch's network gave reason to warn about, as stored with the batch "
+        "(the same as `warnings` of GET /batches/{id}); said at once, before any run, so that a "
+        "long batch is not waited out before the warning is seen")
 
 
 class BatchProgress(BaseModel):

@@ -104,7 +104,7 @@ def start_batch(body: BatchCreate, session: SessionDep, store: StoreDep, jobs: J
     jobs.submit(batch.id, workers=body.workers)
     return BatchAccepted(id=batch.id, status=batch.status, url=f"/api/batches/{batch.id}",
                          events=f"/api/batches/{batch.id}/events",
-                         queue_position=jobs.queue_position(batch.id))
+                         queue_position=jobs.queue_position(batch.id), warnings=list(batch.warnings or []))
 
 
 @router.get("")
@@ -160,7 +160,7 @@ def _snapshot(store: Store, batch_id: int, jobs: JobRegistry) -> tuple[dict[str,
         public = _public(session, batch, jobs)
         ended = batch.status in FINISHED_STATUSES and jobs.live_progress(batch_id) is None
     return {"id": batch_id, "status": public.status, "queue_position": public.queue_position,
-            **public.progress.model_dump()}, ended
+            "warnings": public.warnings, **public.progress.model_dump()}, ended
 
 
 @router.get("/{batch_id}/events", response_class=StreamingResponse,
@@ -168,7 +168,8 @@ def _snapshot(store: Store, batch_id: int, jobs: JobRegistry) -> tuple[dict[str,
                              "description": "`progress` events, then one `end` event with the summary"}})
 async def batch_events(batch_id: int, request: Request, store: StoreDep, jobs: JobsDep) -> StreamingResponse:
     """Server-Sent Events: a ``progress`` event whenever the batch moves, then ``end`` (its
-    status and summary) when it has finished; the stream then closes."""
+    status, warnings and summary) when it has finished; the stream then closes. Both carry the
+    batch's stored ``warnings``, so a client that only follows the stream still sees them."""
     first = await asyncio.to_thread(_snapshot, store, batch_id, jobs)  # a 404 comes before the stream
 
     async def stream() -> AsyncIterator[str]:
@@ -182,7 +183,8 @@ async def batch_events(batch_id: int, request: Request, store: StoreDep, jobs: J
                 last, quiet_s = data, 0.0
             if ended:
                 summary = await asyncio.to_thread(_summary, store, batch_id)
-                yield _sse("end", {"id": batch_id, "status": data["status"], "summary": summary.model_dump()})
+                yield _sse("end", {"id": batch_id, "status": data["status"], "warnings": data["warnings"],
+                                   "summary": summary.model_dump()})
                 return
             if await request.is_disconnected():
                 return
