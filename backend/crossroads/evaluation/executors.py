@@ -2,7 +2,9 @@
 
 Both executors drive the same :class:`EpisodeWorker`: one per process, holding one
 :class:`~crossroads.sim.world.World` (libsumo runs one simulation per process) and one
-controller, reused for every episode that worker gets. A worker turns every Python exception of
+controller, reused for every episode that worker gets, each episode in a child forked from the
+worker (``FORK_EPISODES``: SUMO's results depend on the memory it runs in, and a fork of the
+same worker gives every episode the same). A worker turns every Python exception of
 an episode into an error report, and the executor turns a worker that dies (killed, segfault)
 into an error report for the run it held and starts a replacement; so every task given to an
 executor comes back as exactly one :class:`EpisodeReport`, unless the batch is cancelled (the
@@ -16,6 +18,7 @@ from __future__ import annotations
 import hashlib
 import multiprocessing as mp
 import os
+import pickle
 import signal
 import sys
 import threading
@@ -113,13 +116,27 @@ class _Sabotaged:
         return self.inner.decide(observation)
 
 
-class EpisodeWorker:
-    """Runs episodes of one job in this process: builds the World and controller once, lazily,
-    and again only after an episode crashed (its SUMO session may be unusable)."""
+# Each episode runs in a child forked from its worker, which has loaded the controller and built the
+# World but never started SUMO. Why: SUMO's simulation depends on where its objects land in memory,
+# so an episode run after others in the same process can end differently from the same seed run
+# first (seed 2090914255 of the nominal left turn: timeout first, passed after three other
+# episodes or 5 000 throw-away allocations; docs/measurements/determinism.md). Forked from the same
+# untouched worker, every episode starts from the same memory, whatever ran before it and whichever
+# worker gets it. Off where there is no fork (Windows): episodes then run in the worker itself.
+FORK_EPISODES = hasattr(os, "fork")
+_PR_SET_PDEATHSIG = 1  # prctl option (Linux): a signal for this process when its parent dies
 
-    def __init__(self, job: WorkerJob) -> None:
+
+class EpisodeWorker:
+    """Runs episodes of one job: builds the World and controller once, lazily, in this process, and
+    runs each episode in a forked child of it (``FORK_EPISODES``), or in this process when
+    ``fork_episodes`` is false, then building them again only after an episode crashed (its SUMO
+    session may be unusable)."""
+
+    def __init__(self, job: WorkerJob, fork_episodes: bool = FORK_EPISODES) -> None:
         self.job = job
         self.name = f"pid {os.getpid()}"
+        self.fork_episodes = fork_episodes
         self._world: Any = None
         self._controller: Any = None
         self._spec: Any = None
@@ -149,7 +166,40 @@ class EpisodeWorker:
                 pass
 
     def run(self, task: EpisodeTask) -> EpisodeReport:
-        """One episode; never raises for a failure of the episode itself."""
+        """One episode; never raises for a failure of the episode itself (a child that dies comes
+        back as an error report naming how it died)."""
+        if not self.fork_episodes:
+            return self._run_here(task)
+        try:
+            self._ready()  # here, once: every child inherits them, SUMO not started
+        except Exception:  # noqa: BLE001 - the episode records why, as it would unforked
+            return self._run_here(task)
+        read_fd, write_fd = os.pipe()
+        parent = os.getpid()
+        pid = os.fork()
+        if pid == 0:  # the child: run, hand the report back, and leave without any cleanup
+            status = 70
+            try:
+                os.close(read_fd)
+                _die_with_parent(parent)
+                data = pickle.dumps(self._run_here(task), protocol=pickle.HIGHEST_PROTOCOL)
+                with os.fdopen(write_fd, "wb") as out:
+                    out.write(data)
+                status = 0
+            finally:
+                os._exit(status)
+        os.close(write_fd)
+        with os.fdopen(read_fd, "rb") as pipe:
+            data = pipe.read()
+        _, wait_status = os.waitpid(pid, 0)
+        code = os.waitstatus_to_exitcode(wait_status)
+        if code == 0 and data:
+            report: EpisodeReport = pickle.loads(data)
+            return report
+        return _died(task, f"episode process {pid}", _exit_reason(code))
+
+    def _run_here(self, task: EpisodeTask) -> EpisodeReport:
+        """One episode in this process."""
         from crossroads.evaluation.episode import run_episode
         from crossroads.evaluation.trace import TraceRecorder
 
@@ -192,6 +242,19 @@ class EpisodeWorker:
 
     def close(self) -> None:
         self._discard_world()
+
+
+def _die_with_parent(parent: int) -> None:
+    """Have the kernel kill this process when its parent dies (Linux; elsewhere nothing): a worker
+    killed on cancel must not leave its episode running on."""
+    if not sys.platform.startswith("linux"):
+        return
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)
 
 
 ReportSink = Callable[[EpisodeReport], None]
