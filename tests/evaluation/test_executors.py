@@ -3,13 +3,20 @@ worker ran before."""
 
 from __future__ import annotations
 
-import os
+import threading
 from pathlib import Path
 
 import pytest
 from support import REPO_ROOT
 
-from crossroads.evaluation.executors import FORK_EPISODES, EpisodeTask, EpisodeWorker, WorkerJob
+from crossroads.evaluation.executors import (
+    FORK_EPISODES,
+    EpisodeReport,
+    EpisodeTask,
+    EpisodeWorker,
+    ProcessExecutor,
+    WorkerJob,
+)
 from crossroads.evaluation.scenario import load_scenario, run_seeds
 
 NOMINAL_LEFT = REPO_ROOT / "scenarios" / "nominal" / "c_three_lane-left.yaml"
@@ -26,33 +33,51 @@ def nominal_job() -> WorkerJob:
                      policy_ref="rule", traces="none")
 
 
+def run_tasks(tasks: list[EpisodeTask], job: WorkerJob | None = None) -> list[EpisodeReport]:
+    """``tasks`` through one local worker process, in order; their reports in the same order."""
+    reports: list[EpisodeReport] = []
+    ProcessExecutor(workers=1).run(job or nominal_job(), tasks, reports.append, threading.Event())
+    return reports
+
+
 @pytest.mark.skipif(not FORK_EPISODES, reason="episodes run in a forked child only where fork exists")
 def test_an_episode_ends_the_same_whatever_its_worker_ran_before() -> None:
-    """The sensitive seed, run first by a worker, then again by one worker after each of six
-    different histories of other episodes. Unforked, in this test process, some of those histories
-    changed its result (measured: the test fails with ``fork_episodes=False``)."""
+    """The sensitive seed run first by a worker, then by another worker after each of six different
+    histories of other episodes: the same result every time. Unforked (``FORK_EPISODES`` set False
+    in the module) this failed here: not all six equalled the first."""
     seeds = run_seeds(load_scenario(NOMINAL_LEFT), 12)
     target = EpisodeTask(99, SENSITIVE_SEED)
-    fresh = EpisodeWorker(nominal_job())
-    first = fresh.run(target)
-    fresh.close()
+    (first,) = run_tasks([target])
     assert first.result is not None
-    busy = EpisodeWorker(nominal_job())
+    tasks: list[EpisodeTask] = []
     for history in ([0], [1, 2], [3], [4, 5, 6], [7, 8], [9, 10, 11]):
-        for index in history:
-            assert busy.run(EpisodeTask(index, seeds[index])).result is not None
-        assert busy.run(target).result == first.result, history  # outcome, steps, events, ...
-    busy.close()
+        tasks += [EpisodeTask(i, seeds[i]) for i in history] + [target]
+    reports = run_tasks(tasks)
+    assert [r.run_index for r in reports] == [t.run_index for t in tasks]
+    assert all(r.result is not None for r in reports)
+    after = [r.result for r in reports if r.run_index == target.run_index]
+    assert len(after) == 6 and all(result == first.result for result in after)  # outcome, steps, events, ...
 
 
 @pytest.mark.skipif(not FORK_EPISODES, reason="episodes run in a forked child only where fork exists")
 def test_a_child_that_dies_is_an_error_report_and_the_worker_goes_on() -> None:
-    job = WorkerJob(**{**nominal_job().__dict__, "faults": {0: "kill"}})
-    worker = EpisodeWorker(job)
+    """A killed episode comes back as its run's error, and the same worker process runs the next."""
     seed = run_seeds(load_scenario(NOMINAL_LEFT), 1)[0]
-    killed = worker.run(EpisodeTask(0, seed))
+    job = WorkerJob(**{**nominal_job().__dict__, "faults": {0: "kill"}})
+    killed, after = run_tasks([EpisodeTask(0, seed), EpisodeTask(1, seed)], job)
     assert killed.result is None and killed.error is not None
     assert killed.error.startswith("WorkerDied: episode process") and "SIGKILL" in killed.error
-    assert worker.run(EpisodeTask(1, seed)).result is not None  # the same worker, the next run
-    assert worker.name == f"pid {os.getpid()}"
-    worker.close()
+    assert after.result is not None
+    assert killed.error.split(" of ")[1].startswith(after.worker)  # the child's worker ran the next run too
+
+
+def test_a_forked_episode_reports_as_an_unforked_one() -> None:
+    """``EpisodeWorker.run_forked`` (Ray's actors) gives the report ``run`` gives in a fresh worker."""
+    seed = run_seeds(load_scenario(NOMINAL_LEFT), 1)[0]
+    forked = EpisodeWorker(nominal_job())
+    here = EpisodeWorker(nominal_job())
+    try:
+        assert forked.run_forked(EpisodeTask(0, seed)).result == here.run(EpisodeTask(0, seed)).result
+    finally:
+        forked.close()
+        here.close()

@@ -29,7 +29,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
-from typing import Any, Literal, Protocol
+from typing import Any, Literal, NoReturn, Protocol
 
 FaultKind = Literal["raise", "kill"]
 ERROR_MESSAGE_MAX = 4000  # [chars] of a stored error message (first line: type and message)
@@ -116,30 +116,79 @@ class _Sabotaged:
         return self.inner.decide(observation)
 
 
-# Each episode runs in a child forked from its worker, which has loaded the controller and built the
-# World but never started SUMO. Why: SUMO's simulation depends on where its objects land in memory,
-# so an episode run after others in the same process can end differently from the same seed run
-# first (seed 2090914255 of the nominal left turn: timeout first, passed after three other
-# episodes or 5 000 throw-away allocations; docs/measurements/determinism.md). Forked from the same
-# untouched worker, every episode starts from the same memory, whatever ran before it and whichever
-# worker gets it. Off where there is no fork (Windows): episodes then run in the worker itself.
-FORK_EPISODES = hasattr(os, "fork")
+# Each episode runs in a child forked from its worker process, which has loaded the controller and
+# built the World but never started SUMO. Why: SUMO's simulation depends on where its objects land in
+# memory, so an episode run after others in the same process could end differently from the same
+# seed run first (seed 2090914255 of the nominal left turn: timeout first, passed after three other
+# episodes or after 5 000 throw-away allocations; docs/measurements/determinism.md). A local worker
+# does nothing between its forks but wait for the child (the child reads the task and sends the
+# report itself), so every child starts from the same memory, whatever ran before it and whichever
+# worker gets the seed. Off where there is no fork (Windows), or with CROSSROADS_FORK_EPISODES=0
+# (read by each worker process when it starts): episodes then run in the worker itself.
+FORK_EPISODES = hasattr(os, "fork") and os.environ.get("CROSSROADS_FORK_EPISODES", "1") != "0"
 _PR_SET_PDEATHSIG = 1  # prctl option (Linux): a signal for this process when its parent dies
+_CHILD_STOP = 3  # exit status of a child that was told to stop (or lost the coordinator's pipe)
+
+
+@dataclass(frozen=True)
+class ChildDied:
+    """What a local worker sends when the child running its task dies without a report."""
+
+    who: str
+    why: str
 
 
 class EpisodeWorker:
-    """Runs episodes of one job: builds the World and controller once, lazily, in this process, and
-    runs each episode in a forked child of it (``FORK_EPISODES``), or in this process when
-    ``fork_episodes`` is false, then building them again only after an episode crashed (its SUMO
-    session may be unusable)."""
+    """Runs episodes of one job in this process: builds the World and controller once, lazily,
+    and again only after an episode crashed (its SUMO session may be unusable). The executors run
+    each episode in a child forked from the worker (``FORK_EPISODES``, :func:`_process_main`,
+    :meth:`run_forked`)."""
 
-    def __init__(self, job: WorkerJob, fork_episodes: bool = FORK_EPISODES) -> None:
+    def __init__(self, job: WorkerJob) -> None:
         self.job = job
         self.name = f"pid {os.getpid()}"
-        self.fork_episodes = fork_episodes
         self._world: Any = None
         self._controller: Any = None
         self._spec: Any = None
+
+    def prepare(self) -> None:
+        """Load the controller and build the World now (SUMO is not started), so that forked
+        children inherit them; a failure is left for the episode to record."""
+        try:
+            self._ready()
+        except Exception:  # noqa: BLE001 - run() records it as the episode's error
+            pass
+
+    def run_forked(self, task: EpisodeTask) -> EpisodeReport:
+        """:meth:`run` in a child forked from this process, the report handed back through a pipe
+        (a child that dies comes back as an error report naming how). This process reads the
+        report between forks, so its memory is not quite the same for every child: the local
+        workers avoid that (:func:`_process_main`); Ray's actors use this."""
+        if not FORK_EPISODES:
+            return self.run(task)
+        self.prepare()
+        read_fd, write_fd = os.pipe()
+        parent = os.getpid()
+        pid = os.fork()
+        if pid == 0:
+            status = 70
+            try:
+                os.close(read_fd)
+                _die_with_parent(parent)
+                data = pickle.dumps(self.run(task), protocol=pickle.HIGHEST_PROTOCOL)
+                with os.fdopen(write_fd, "wb") as out:
+                    out.write(data)
+                status = 0
+            finally:
+                os._exit(status)
+        os.close(write_fd)
+        with os.fdopen(read_fd, "rb") as pipe:
+            data = pipe.read()
+        code = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+        if code == 0 and data:
+            report: EpisodeReport = pickle.loads(data)
+            return report
+        return _died(task, f"episode process {pid} of {self.name}", _exit_reason(code))
 
     def _ready(self) -> tuple[Any, Any]:
         from crossroads.evaluation.policies import load_controller
@@ -166,40 +215,7 @@ class EpisodeWorker:
                 pass
 
     def run(self, task: EpisodeTask) -> EpisodeReport:
-        """One episode; never raises for a failure of the episode itself (a child that dies comes
-        back as an error report naming how it died)."""
-        if not self.fork_episodes:
-            return self._run_here(task)
-        try:
-            self._ready()  # here, once: every child inherits them, SUMO not started
-        except Exception:  # noqa: BLE001 - the episode records why, as it would unforked
-            return self._run_here(task)
-        read_fd, write_fd = os.pipe()
-        parent = os.getpid()
-        pid = os.fork()
-        if pid == 0:  # the child: run, hand the report back, and leave without any cleanup
-            status = 70
-            try:
-                os.close(read_fd)
-                _die_with_parent(parent)
-                data = pickle.dumps(self._run_here(task), protocol=pickle.HIGHEST_PROTOCOL)
-                with os.fdopen(write_fd, "wb") as out:
-                    out.write(data)
-                status = 0
-            finally:
-                os._exit(status)
-        os.close(write_fd)
-        with os.fdopen(read_fd, "rb") as pipe:
-            data = pipe.read()
-        _, wait_status = os.waitpid(pid, 0)
-        code = os.waitstatus_to_exitcode(wait_status)
-        if code == 0 and data:
-            report: EpisodeReport = pickle.loads(data)
-            return report
-        return _died(task, f"episode process {pid}", _exit_reason(code))
-
-    def _run_here(self, task: EpisodeTask) -> EpisodeReport:
-        """One episode in this process."""
+        """One episode in this process; never raises for a failure of the episode itself."""
         from crossroads.evaluation.episode import run_episode
         from crossroads.evaluation.trace import TraceRecorder
 
@@ -280,20 +296,54 @@ def _died(task: EpisodeTask, who: str, why: str) -> EpisodeReport:
 
 
 def _process_main(job: WorkerJob, conn: Connection) -> None:
-    """A worker process: receive tasks, send reports, until None or the pipe closes."""
+    """A worker process: receive tasks, send reports, until None or the pipe closes. With
+    ``FORK_EPISODES`` each task is received, run and reported by a child forked for it, and this
+    process only waits for the child: it tells the coordinator when a child died (:class:`ChildDied`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
     worker = EpisodeWorker(job)
     try:
+        if not FORK_EPISODES:
+            while True:
+                task = conn.recv()
+                if task is None:
+                    break
+                conn.send(worker.run(task))
+            return
+        worker.prepare()
+        parent = os.getpid()
         while True:
-            task = conn.recv()
-            if task is None:
+            pid = os.fork()
+            if pid == 0:
+                _episode_child(worker, conn, parent)
+            code = os.waitstatus_to_exitcode(os.waitpid(pid, 0)[1])
+            if code == _CHILD_STOP:
                 break
-            conn.send(worker.run(task))
+            if code != 0:
+                conn.send(ChildDied(f"episode process {pid} of {worker.name}", _exit_reason(code)))
     except (EOFError, OSError):
         pass
     finally:
         worker.close()
         conn.close()
+
+
+def _episode_child(worker: EpisodeWorker, conn: Connection, parent: int) -> NoReturn:
+    """A forked child of a worker: receive one task, run it, send its report, exit (``_CHILD_STOP``
+    when told to stop or when the coordinator has gone)."""
+    status = 70
+    try:
+        _die_with_parent(parent)
+        try:
+            task = conn.recv()
+        except (EOFError, OSError):
+            task = None
+        if task is None:
+            status = _CHILD_STOP
+        else:
+            conn.send(worker.run(task))
+            status = 0
+    finally:
+        os._exit(status)
 
 
 class _Slot:
@@ -375,7 +425,10 @@ class ProcessExecutor:
                             got = slot.conn.recv()
                         except (EOFError, OSError):
                             got = None
-                    if got is not None:
+                    if isinstance(got, ChildDied):  # the worker lives on: its next child takes the next task
+                        task, slot.task = slot.task, None
+                        report(_died(task, got.who, got.why))
+                    elif got is not None:
                         slot.task = None
                         deaths_without_progress = 0
                         report(got)
@@ -420,7 +473,7 @@ class _RayEpisodeActor:
         self.worker.name = f"ray actor pid {os.getpid()}"
 
     def run(self, task: EpisodeTask) -> EpisodeReport:
-        return self.worker.run(task)
+        return self.worker.run_forked(task)
 
     def pid(self) -> int:
         return os.getpid()
