@@ -8,10 +8,10 @@ across all of them (in that lane, or at the start of the junction where the path
 parted) for a whole episode bars every path: no driver passes that run, however it drives. This
 drives the scenario's first N seeded episodes (the seeds of ``crossroads evaluate``) with each
 driver and, for every run that times out, finds the nearest vehicle ahead of the ego (along its
-paths) whose body overlaps every candidate path (:func:`bars_every_path`) and
-when that vehicle last moved (faster than ``MOVING_MPS``). A run is *held from the start* when that
-vehicle has not moved since ``HELD_FROM_S``: it stood across every path the whole time the ego
-could have used to get past it.
+paths) whose body overlaps every candidate path (:func:`bars_every_path`) and when that vehicle
+last moved (at ``STOPPED_SPEED_MPS`` or faster: the world's own threshold for a stopped vehicle).
+A run is *held from the start* when that vehicle has not moved since ``HELD_FROM_S``: it stood
+across every path the whole time the ego could have used to get past it.
 
 ``stand`` is a driver that brakes to a stand at once and stays there: behind it the lane's queue is
 whatever the world makes of it without the ego near. A run held from the start under drivers as
@@ -40,9 +40,9 @@ from crossroads.evaluation.policies import load_controller  # noqa: E402
 from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.controller import Controller, Decision  # noqa: E402
 from crossroads.planning import CandidatePath  # noqa: E402
-from crossroads.sim.world import Observation, World  # noqa: E402
+from crossroads.geometry import distances_to_polyline  # noqa: E402
+from crossroads.sim.world import STOPPED_SPEED_MPS, Observation, World  # noqa: E402
 
-MOVING_MPS = 0.1  # [m/s] faster than this a vehicle moves (SUMO's halting threshold)
 HELD_FROM_S = 5.0  # [s] a vehicle that has not moved since then held the lane from the start
 
 
@@ -75,10 +75,9 @@ class RunEnd:
 
 def bars_every_path(x: float, y: float, width: float, candidates: Sequence[CandidatePath]) -> bool:
     """Whether a body of ``width`` centred at (x, y) overlaps every candidate path's swept band (the
-    ego's width): the ego cannot drive past it on any of them. The paths' points lie 0.5 m apart,
-    so the nearest point is within 0.06 m of the nearest point of the polyline."""
+    ego's width): the ego cannot drive past it on any of them."""
     reach = (width + EGO_WIDTH_M) / 2.0
-    return all(float(np.min(np.hypot(c.points[:, 0] - x, c.points[:, 1] - y))) < reach for c in candidates)
+    return all(float(distances_to_polyline([(x, y)], c.points)[0]) < reach for c in candidates)
 
 
 def drive(world: World, driver: Controller, seed: int) -> RunEnd:
@@ -90,27 +89,22 @@ def drive(world: World, driver: Controller, seed: int) -> RunEnd:
     while outcome is None:
         obs, outcome = world.step(driver.decide(obs).action)
         snap = obs.participants
-        for pid in snap.ids[snap.speed > MOVING_MPS].tolist():
+        for pid in snap.ids[snap.speed >= STOPPED_SPEED_MPS].tolist():
             last_moved[pid] = obs.time_s
     if outcome.kind != "timeout":
         return RunEnd(seed, outcome.kind, None, None, None)
     snap = obs.participants
     path = world.candidates[0]  # a blocker bars them all: along any one of them is as good
-    ego_s = arc_position(path, float(obs.ego[0]), float(obs.ego[1]))
-    barring = [(arc_position(path, float(snap.x[k]), float(snap.y[k])) - ego_s, k) for k in range(len(snap))
-               if snap.kind[k] == "vehicle"
-               and bars_every_path(float(snap.x[k]), float(snap.y[k]), float(snap.width[k]), world.candidates)]
-    ahead = sorted((gap, k) for gap, k in barring if gap > 0.0)
+    ego_s = path.project(float(obs.ego[0]), float(obs.ego[1])).s_m
+    ahead = sorted((gap, k) for k in range(len(snap))
+                   if snap.kind[k] == "vehicle"
+                   and bars_every_path(float(snap.x[k]), float(snap.y[k]), float(snap.width[k]), world.candidates)
+                   and (gap := path.project(float(snap.x[k]), float(snap.y[k])).s_m - ego_s) > 0.0)
     if not ahead:
         return RunEnd(seed, outcome.kind, None, None, None)
     gap, row = ahead[0]
     pid = str(snap.ids[row])
     return RunEnd(seed, outcome.kind, pid, last_moved.get(pid, -np.inf), gap)
-
-
-def arc_position(path: CandidatePath, x: float, y: float) -> float:
-    """The arc length [m] of the point of ``path`` nearest (x, y)."""
-    return float(path.s[int(np.argmin(np.hypot(path.points[:, 0] - x, path.points[:, 1] - y)))])
 
 
 def main() -> None:

@@ -21,8 +21,8 @@ function showCancel(batchId: number | null): void {
   button.dataset.batch = batchId == null ? "" : String(batchId);
 }
 
-/** The warnings of the batch being followed, beside its progress bar, as soon as the API says them
- *  (the 202 answer, then every progress event): a network warning is worth seeing before the runs. */
+/** The warnings of the batch being followed, beside its progress bar, from the 202 answer on: a
+ *  network warning is worth seeing before the runs. */
 function showProgressWarnings(warnings: string[] | undefined): void {
   const list = $("#progress-warnings");
   const items = warnings ?? [];
@@ -60,7 +60,6 @@ export function follow(batchId: number, done: () => void): void {
   source.addEventListener("progress", (ev) => {
     const p = JSON.parse((ev as MessageEvent).data);
     bar.value = p.fraction;
-    showProgressWarnings(p.warnings);
     if ($("#cancel").dataset.state !== "cancelling" || FINISHED.includes(p.status)) text.textContent = progressLine(batchId, p);
   });
   source.addEventListener("end", async (ev) => {

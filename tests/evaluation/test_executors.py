@@ -4,6 +4,7 @@ worker ran before."""
 from __future__ import annotations
 
 import threading
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -63,7 +64,7 @@ def test_an_episode_ends_the_same_whatever_its_worker_ran_before() -> None:
 def test_a_child_that_dies_is_an_error_report_and_the_worker_goes_on() -> None:
     """A killed episode comes back as its run's error, and the same worker process runs the next."""
     seed = run_seeds(load_scenario(NOMINAL_LEFT), 1)[0]
-    job = WorkerJob(**{**nominal_job().__dict__, "faults": {0: "kill"}})
+    job = replace(nominal_job(), faults={0: "kill"})
     killed, after = run_tasks([EpisodeTask(0, seed), EpisodeTask(1, seed)], job)
     assert killed.result is None and killed.error is not None
     assert killed.error.startswith("WorkerDied: episode process") and "SIGKILL" in killed.error

@@ -15,6 +15,7 @@ Executors hand reports to a callback in the calling thread, one at a time, as th
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import multiprocessing as mp
 import os
@@ -128,6 +129,7 @@ class _Sabotaged:
 FORK_EPISODES = hasattr(os, "fork") and os.environ.get("CROSSROADS_FORK_EPISODES", "1") != "0"
 _PR_SET_PDEATHSIG = 1  # prctl option (Linux): a signal for this process when its parent dies
 _CHILD_STOP = 3  # exit status of a child that was told to stop (or lost the coordinator's pipe)
+_CHILD_FAILED = 70  # exit status of a child that raised outside the episode (EX_SOFTWARE)
 
 
 @dataclass(frozen=True)
@@ -154,6 +156,8 @@ class EpisodeWorker:
     def prepare(self) -> None:
         """Load the controller and build the World now (SUMO is not started), so that forked
         children inherit them; a failure is left for the episode to record."""
+        if sys.platform.startswith("linux"):
+            _libc()  # loaded here once, not in every child (:func:`_die_with_parent`)
         try:
             self._ready()
         except Exception:  # noqa: BLE001 - run() records it as the episode's error
@@ -171,7 +175,7 @@ class EpisodeWorker:
         parent = os.getpid()
         pid = os.fork()
         if pid == 0:
-            status = 70
+            status = _CHILD_FAILED
             try:
                 os.close(read_fd)
                 _die_with_parent(parent)
@@ -260,15 +264,20 @@ class EpisodeWorker:
         self._discard_world()
 
 
+@functools.cache
+def _libc() -> Any:
+    """The C library, loaded once per worker (its forked children inherit it)."""
+    import ctypes
+
+    return ctypes.CDLL(None, use_errno=True)
+
+
 def _die_with_parent(parent: int) -> None:
     """Have the kernel kill this process when its parent dies (Linux; elsewhere nothing): a worker
     killed on cancel must not leave its episode running on."""
     if not sys.platform.startswith("linux"):
         return
-    import ctypes
-
-    libc = ctypes.CDLL(None, use_errno=True)
-    libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    _libc().prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
     if os.getppid() != parent:  # the parent died before prctl took effect
         os._exit(1)
 
@@ -330,7 +339,7 @@ def _process_main(job: WorkerJob, conn: Connection) -> None:
 def _episode_child(worker: EpisodeWorker, conn: Connection, parent: int) -> NoReturn:
     """A forked child of a worker: receive one task, run it, send its report, exit (``_CHILD_STOP``
     when told to stop or when the coordinator has gone)."""
-    status = 70
+    status = _CHILD_FAILED
     try:
         _die_with_parent(parent)
         try:

@@ -104,7 +104,7 @@ def start_batch(body: BatchCreate, session: SessionDep, store: StoreDep, jobs: J
     jobs.submit(batch.id, workers=body.workers)
     return BatchAccepted(id=batch.id, status=batch.status, url=f"/api/batches/{batch.id}",
                          events=f"/api/batches/{batch.id}/events",
-                         queue_position=jobs.queue_position(batch.id), warnings=list(batch.warnings or []))
+                         queue_position=jobs.queue_position(batch.id), warnings=warnings)
 
 
 @router.get("")
