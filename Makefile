@@ -1,9 +1,11 @@
 # The two commands of the README. Both set up what they need first (scripts/setup.sh).
 #   make serve [ARGS="--port 9000 --db postgresql://..."]   the studio on http://127.0.0.1:8000
-#   make test  [PYTEST_ARGS="-k junction"]                   the whole test suite
+#   make test  [PYTEST_ARGS="-k junction"]                   the whole test suite (what CI runs)
+#   make test-fast                                           the suite without the tests marked slow
+#   make docs                                                the user's guide, served on http://127.0.0.1:8001
 #   make models [ITERATIONS=8000]                            train and export models/apg.pt, models/dpg.pt
-#   make measure                                             measure them (docs/measurements/)
-.PHONY: serve test setup bench models measure
+#   make measure                                             measure them (var/measurements/)
+.PHONY: serve test test-fast docs setup bench models measure
 
 serve:
 	@bash scripts/setup.sh
@@ -13,6 +15,15 @@ test:
 	@bash scripts/setup.sh --test
 	.venv/bin/ruff check --quiet .
 	.venv/bin/python -m pytest $(PYTEST_ARGS)
+
+test-fast:
+	@bash scripts/setup.sh --test
+	.venv/bin/ruff check --quiet .
+	.venv/bin/python -m pytest -m "not slow" $(PYTEST_ARGS)
+
+docs:
+	@bash scripts/setup.sh
+	NO_MKDOCS_2_WARNING=1 .venv/bin/mkdocs serve -a 127.0.0.1:8001
 
 setup:
 	@bash scripts/setup.sh --test

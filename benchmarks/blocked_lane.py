@@ -35,15 +35,14 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from crossroads.constants import EGO_WIDTH_M, JERK_MAX  # noqa: E402
-from crossroads.evaluation.policies import load_controller  # noqa: E402
+from crossroads.constants import JERK_MAX  # noqa: E402
+from crossroads.evaluation.policies import load_controller, parse_policy  # noqa: E402
 from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.controller import Controller, Decision  # noqa: E402
 from crossroads.planning import CandidatePath  # noqa: E402
-from crossroads.geometry import distances_to_polyline  # noqa: E402
+from crossroads.sim.blocking import HELD_FROM_S, bars_every_path  # noqa: E402,F401 (re-exported)
 from crossroads.sim.world import STOPPED_SPEED_MPS, Observation, World  # noqa: E402
 
-HELD_FROM_S = 5.0  # [s] a vehicle that has not moved since then held the lane from the start
 
 
 class StandingDriver:
@@ -71,13 +70,6 @@ class RunEnd:
     @property
     def held_from_start(self) -> bool:
         return self.blocker_last_moved_s is not None and self.blocker_last_moved_s <= HELD_FROM_S
-
-
-def bars_every_path(x: float, y: float, width: float, candidates: Sequence[CandidatePath]) -> bool:
-    """Whether a body of ``width`` centred at (x, y) overlaps every candidate path's swept band (the
-    ego's width): the ego cannot drive past it on any of them."""
-    reach = (width + EGO_WIDTH_M) / 2.0
-    return all(float(distances_to_polyline([(x, y)], c.points)[0]) < reach for c in candidates)
 
 
 def drive(world: World, driver: Controller, seed: int) -> RunEnd:
@@ -126,7 +118,7 @@ def main() -> None:
     held_by: dict[str, set[int]] = {}
     with World(to_world_config(spec, args.scenario.parent)) as world:
         for ref in args.policy:
-            driver = StandingDriver() if ref == "stand" else load_controller(ref)
+            driver = StandingDriver() if ref == "stand" else load_controller(parse_policy(ref))
             ends = [drive(world, driver, seed) for seed in seeds]
             outcomes = Counter(e.outcome for e in ends)
             held = [e for e in ends if e.held_from_start]

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -27,7 +28,7 @@ import numpy as np
 
 from crossroads.constants import L_F, L_R, STEER_MAX
 
-from crossroads.evaluation.policies import load_controller
+from crossroads.evaluation.policies import load_controller, parse_policy
 from crossroads.idc.controller import Controller
 from crossroads.network import catalogue
 from crossroads.network.model import TASKS
@@ -76,14 +77,15 @@ def main() -> None:
     if args.model_optimum:
         if args.policy == "rule" or "+" in args.policy:
             parser.error("--model-optimum: --policy must be a trained checkpoint (.pt)")
-        from probing import ModelOptimumController  # benchmarks/ is on sys.path when run as a script
+        sys.path.insert(0, str(Path(__file__).resolve().parent / "research"))  # the research probes
+        from probing import ModelOptimumController
 
         from crossroads.rl.checkpoint import load_networks
 
         networks, _ = load_networks(Path(args.policy))
         make = lambda: ModelOptimumController(networks.policy, networks.value)  # noqa: E731
     else:
-        make = lambda: load_controller(args.policy)  # noqa: E731
+        make = lambda: load_controller(parse_policy(args.policy))  # noqa: E731
 
     names = args.intersections or catalogue.list_intersections()
     print(f"policy {args.policy}{' (its model optimum)' if args.model_optimum else ''}; no traffic, green light, pass mode; "

@@ -1,14 +1,12 @@
 #!/usr/bin/env bash
 # Measure the shipped models/apg.pt and models/dpg.pt the way models/README.md reports them.
 #
-#   bash scripts/measure_models.sh            (session 4: 5.5 min on 2 cores beside a test run;
-#                                             the tracking benchmark alone took 6.4 min beside training;
-#                                             session 5, MODELS=apg on a slower host: 11.9 min)
+#   bash scripts/measure_models.sh            (about 6 min on 2 cores; 12 min on a slower host)
 #   make measure
 #
-# Writes into docs/measurements/ (OUT=DIR to change):
+# Writes into var/measurements/ (OUT=DIR to change):
 #   nominal-left-200.json      APG, DPG and the rule controller, 200 seeded nominal left turns on
-#                              the issue's default intersection (c_three_lane), Wilson intervals
+#                              c_three_lane, Wilson intervals
 #   tracking-{apg,dpg}.txt     no traffic, every candidate path of the six intersections
 #   failure-modes-{apg,dpg}.txt  50 of those runs: collisions classified, the model's view before them
 #   adversary-strength-apg.txt whether APG's adversary leaves the driving policy a safe plan
@@ -19,7 +17,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-OUT="${OUT:-docs/measurements}"
+OUT="${OUT:-var/measurements}"
 DB="${DB:-sqlite:///var/measure.db}"
 WORKERS="${WORKERS:-2}"
 MODELS="${MODELS:-apg dpg}"
@@ -33,11 +31,11 @@ mkdir -p var "$OUT"
     --workers "$WORKERS" --db "$DB" --traces none --json > "$OUT/nominal-left-200.json"
 for algo in $MODELS; do
     "$PY" benchmarks/tracking.py --policy "models/$algo.pt" > "$OUT/tracking-$algo.txt"
-    "$PY" benchmarks/failure_modes.py "$SCENARIO" --policy "models/$algo.pt" --runs 50 > "$OUT/failure-modes-$algo.txt"
-    "$PY" benchmarks/value_ordering.py "$SCENARIO" --policy "models/$algo.pt" > "$OUT/value-ordering-$algo.txt"
+    "$PY" benchmarks/research/failure_modes.py "$SCENARIO" --policy "models/$algo.pt" --runs 50 > "$OUT/failure-modes-$algo.txt"
+    "$PY" benchmarks/research/value_ordering.py "$SCENARIO" --policy "models/$algo.pt" > "$OUT/value-ordering-$algo.txt"
 done
 if [[ " $MODELS " == *" apg "* ]]; then
-    "$PY" benchmarks/adversary_strength.py "$SCENARIO" --policy models/apg.pt > "$OUT/adversary-strength-apg.txt"
+    "$PY" benchmarks/research/adversary_strength.py "$SCENARIO" --policy models/apg.pt > "$OUT/adversary-strength-apg.txt"
 fi
-"$PY" benchmarks/queue_response.py --policy models/apg.pt --policy models/dpg.pt > "$OUT/queue-response.txt"
+"$PY" benchmarks/research/queue_response.py --policy models/apg.pt --policy models/dpg.pt > "$OUT/queue-response.txt"
 echo "measurements written to $OUT/"

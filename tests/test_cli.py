@@ -45,8 +45,8 @@ def test_paths_json_has_the_documented_fields(tmp_path: Path) -> None:
     assert candidates, "at least one left-turn candidate"
     for c in candidates:
         assert {"id", "task", "entrance_lane", "exit_lane", "control_points", "points",
-                "segment", "v_pass", "v_stop"} <= set(c)
-        assert c["task"] == "left"
+                "segment", "v_pass", "v_stop", "rho", "max_curvature"} <= set(c)
+        assert c["task"] == "left" and 0.0 < c["rho"] < 1.0 and c["max_curvature"] <= 0.16
         assert len(c["control_points"]) == 6
         assert all(len(row) == 5 for row in c["points"])
         assert len(c["segment"]) == len(c["points"]) == len(c["v_pass"]) == len(c["v_stop"])
@@ -134,13 +134,38 @@ def test_net_check_lists_the_movements_and_fails_above_max_offset() -> None:
     from support import SUMO_CROSS_NET, sumo_example
 
     net = str(sumo_example(SUMO_CROSS_NET))
-    listed = crossroads("net", "check", net)
+    listed = crossroads("net", "check", net, "--rho", "0.6")  # the paper's paths: 3.15 m off
     assert listed.returncode == 0, listed.stderr
     flagged = [line for line in listed.stdout.splitlines() if line.startswith("!")]
-    assert flagged and all("(left" in line or "(uturn" in line or "(right" in line for line in flagged)
+    assert flagged and all("(left" in line or "(right" in line for line in flagged)  # U-turns: not judged
     assert "movements above 1 m; the farthest 3.15 m" in listed.stdout
+    assert "the farthest 2.76 m" in crossroads("net", "check", net).stdout  # the chosen ρ's paths
     strict = crossroads("net", "check", net, "--max-offset", "2")
     assert strict.returncode == 1 and "above --max-offset 2" in strict.stderr
     movements = json.loads(crossroads("net", "check", net, "--json").stdout)
     assert {"from_lane", "to_lane", "turn", "max_m", "mean_m", "above_warning"} <= set(movements[0])
     assert crossroads("net", "check", "c_three_lane", "--max-offset", "0.05").returncode == 0
+
+
+def test_run_refuses_a_start_that_does_not_fit_as_evaluate_does(tmp_path: Path) -> None:
+    """One validation for run, evaluate and the API (evaluation.network_checks): the start is
+    checked along the road before the lane, and refused naming the longest start that fits."""
+    scenario = tmp_path / "far.yaml"
+    scenario.write_text(f"version: 1\nname: far\nintersection: {{net: {COLOGNE1_NET}}}\ntask: left\n"
+                        "approach: '27115123#3'\nego: {start_distance_m: 500}\n")
+    for command in ("run", "evaluate"):
+        result = crossroads(command, str(scenario), *(("--db", f"sqlite:///{tmp_path}/r.db") if command == "evaluate" else ()))
+        assert result.returncode == 2, (command, result.stdout, result.stderr)
+        assert "ego.start_distance_m: 500 m does not fit before the stop line" in result.stderr, command
+        assert "at most 84.5 m before the line" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_paths_refuses_a_turn_no_car_can_make_in_one_line() -> None:
+    import sumo
+
+    net = Path(sumo.SUMO_HOME) / "tools" / "game" / "A10KW" / "osm.net.xml"
+    result = crossroads("paths", str(net), "--junction", "cluster_1643085231_21432440_32500280_32500282",
+                        "--task", "right", "--approach", "222448597#0")
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert "no drivable right-turn path" in result.stderr and "tighter than the ego can steer" in result.stderr

@@ -39,6 +39,8 @@ _mount_training()
 
 F = TypeVar("F", bound=Callable[..., Any])
 Task = Literal["left", "straight", "right"]
+POLICY_HELP = ("'rule', a trained checkpoint (PATH.pt), onnx:PATH.onnx or py:package.module:Factory "
+               "(+shield after a checkpoint or ONNX file: with the safety shield)")
 
 
 def _user_errors() -> tuple[type[BaseException], ...]:
@@ -51,13 +53,14 @@ def _user_errors() -> tuple[type[BaseException], ...]:
     from crossroads.network.junction import JunctionError
     from crossroads.network.resolve import NetworkNotFoundError
     from crossroads.planning import PlanningError
+    from crossroads.search.engine import SearchError
     from crossroads.sim.sumo import SumoError
     from crossroads.store import StoreError
     from crossroads.store.reporting import UnknownBatchError
     from crossroads.validation import SpecError
 
     return (SpecError, JunctionError, NetworkNotFoundError, PlanningError, ValidationError,
-            PolicyError, SumoError, StoreError, UnknownBatchError, BatchError, ExecutorError)
+            PolicyError, SumoError, StoreError, UnknownBatchError, BatchError, ExecutorError, SearchError)
 
 
 def reports_errors(func: F) -> F:
@@ -69,6 +72,16 @@ def reports_errors(func: F) -> F:
             raise fail(describe(exc)) from None
 
     return wrapper  # type: ignore[return-value]
+
+
+def _mount_search() -> None:
+    """`crossroads search ...`: a policy's failures searched for in scenario space (crossroads.search.cli)."""
+    from crossroads.search.cli import search
+
+    app.command()(reports_errors(search))
+
+
+_mount_search()
 
 
 @app.command()
@@ -83,17 +96,41 @@ def serve(
     resume_batches: Annotated[bool | None, typer.Option(
         "--resume-batches/--no-resume-batches",
         help="resume batches a previous run of the studio left queued or running (default: yes)")] = None,
+    token: Annotated[str | None, typer.Option(
+        help="access token requests must carry (default: CROSSROADS_TOKEN; generated when the host is "
+             "not a loopback address)")] = None,
+    allowed_host: Annotated[list[str] | None, typer.Option(
+        "--allowed-host", help="a host name the studio answers to besides localhost and HOST (repeat; "
+                               "'*' for any)")] = None,
 ) -> None:
     """Start the studio: the API (docs at /docs) on HOST:PORT."""
+    import secrets
+
     import uvicorn
 
     from crossroads.api.main import create_app
-    from crossroads.settings import Settings
+    from crossroads.settings import WILDCARD_HOSTS, Settings, is_loopback
 
     # options not given keep the CROSSROADS_* environment or the defaults
-    given = {"ray_address": ray, "max_concurrent_batches": max_batches, "resume_batches": resume_batches}
-    settings = Settings(host=host, port=port, db_url=db, **{k: v for k, v in given.items() if v is not None})
-    typer.echo(f"Crossroads studio on http://{host}:{port}/  (API docs: http://{host}:{port}/docs)")
+    given = {"ray_address": ray, "max_concurrent_batches": max_batches, "resume_batches": resume_batches,
+             "token": token, "allowed_hosts": allowed_host}
+    options = {k: v for k, v in given.items() if v is not None}
+    settings = Settings(host=host, port=port, db_url=db, **options)
+    if settings.public and settings.token is None:  # beyond loopback, never without a token
+        settings = Settings(host=host, port=port, db_url=db, **{**options, "token": secrets.token_urlsafe(24)})
+    shown = f"[{host}]" if ":" in host else host
+    url = f"http://{shown}:{port}/"
+    if settings.token is not None:
+        url += f"?token={settings.token.get_secret_value()}"
+    if not is_loopback(host):
+        names = ", ".join(sorted(settings.answered_hosts()))
+        if host in WILDCARD_HOSTS:
+            names += " and this machine's own names and addresses"
+        typer.echo(f"WARNING: listening on {host}: any machine that reaches this one on port {port} can reach "
+                   "the studio. Every API request needs the access token in the URL below; the 3D viewers "
+                   "(viser, each on a port of its own) do not ask for it and listen there too. "
+                   f"The studio answers to the host names {names} (add more with --allowed-host).", err=True)
+    typer.echo(f"Crossroads studio on {url}  (API docs: http://{shown}:{port}/docs)")
     uvicorn.run(create_app(settings), host=host, port=port, log_level="info")
 
 
@@ -131,9 +168,12 @@ def net_check(
     ref: Annotated[str, typer.Argument(metavar="NAME|NET.net.xml", help="catalogue name, spec or SUMO net")],
     junction: Annotated[str | None, typer.Option(help="traffic-light junction id (default: nearest the centre)")] = None,
     max_offset: Annotated[float | None, typer.Option(
-        metavar="M", min=0.0, help="exit with status 1 when an internal lane runs further than M metres "
+        metavar="M", min=0.0, help="exit with status 1 when the internal lane of a task movement (left, "
+                                   "straight, right; U-turns are not judged) runs further than M metres "
                                    "from its candidate path (default: only report)")] = None,
-    rho: Annotated[float, typer.Option(min=0.0, max=1.0, help="ρ of the Bezier construction")] = RHO_BEZIER,
+    rho: Annotated[float | None, typer.Option(
+        min=0.0, max=1.0, help=f"ρ of the Bezier construction (the paper: {RHO_BEZIER}; "
+                               "default: chosen per path within the ego's steering limit)")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="print the movements as JSON")] = False,
 ) -> None:
     """How far SUMO's internal lanes run from the candidate paths, movement by movement.
@@ -159,8 +199,9 @@ def net_check(
         for o in offsets:
             figures = (f"max {o.max_m:5.2f} m  mean {o.mean_m:5.2f} m" if o.max_m is not None and o.mean_m is not None
                        else o.problem)
+            judged = "" if o.is_task else " (not a task: not judged)"
             typer.echo(f"{'!' if o.above_warning else ' '} {o.from_lane} -> {o.to_lane} ({o.turn}, "
-                       f"via {o.via_lane or '-'}): {figures}")
+                       f"via {o.via_lane or '-'}): {figures}{judged}")
         above = sum(o.above_warning for o in offsets)
         typer.echo(f"{above} of {len(offsets)} movements above {INTERNAL_LANE_OFFSET_WARN_M:g} m"
                    + (f"; the farthest {worst.max_m:.2f} m" if worst is not None else ""))
@@ -178,13 +219,15 @@ def paths(
     task: Annotated[Task, typer.Option(help="the ego's task")],
     junction: Annotated[str | None, typer.Option(help="traffic-light junction id (default: nearest the centre)")] = None,
     approach: Annotated[str | None, typer.Option(metavar="EDGE_ID", help="incoming edge (default: from the south)")] = None,
-    rho: Annotated[float, typer.Option(min=0.0, max=1.0, help="ρ of the Bezier construction")] = RHO_BEZIER,
+    rho: Annotated[float | None, typer.Option(
+        min=0.0, max=1.0, help=f"ρ of the Bezier construction for every path (the paper: {RHO_BEZIER}; "
+                               "default: chosen per path within the ego's steering limit)")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="print the candidates as JSON")] = False,
     plot: Annotated[Path | None, typer.Option(metavar="OUT.png", help="draw the intersection and candidates")] = None,
 ) -> None:
     """The candidate paths of a task: one per reachable target lane (Bezier, SPEC §1)."""
     from crossroads.network.resolve import open_junction
-    from crossroads.planning import plan_candidates
+    from crossroads.planning import plan_task
 
     junc = open_junction(ref, junction)
     chosen = junc.default_approach()
@@ -193,7 +236,10 @@ def paths(
             chosen = junc.approach(approach)
         except KeyError as exc:
             raise fail(f"--approach: {exc.args[0]}") from None
-    candidates = plan_candidates(junc, task, approach=chosen, rho=rho)
+    plan = plan_task(junc, task, approach=chosen, rho=rho)
+    candidates = plan.require()  # none: one line saying why (reports_errors)
+    for warning in plan.warnings:
+        typer.secho(f"warning: {warning}", err=True, fg=typer.colors.YELLOW)
     if plot is not None:
         from crossroads.viz.figure import save_intersection_figure
 
@@ -206,10 +252,12 @@ def paths(
                f"{len(candidates)} candidate(s)")
     for c in candidates:
         curve = c.segment == "curve"
+        moved = (f"  X1 back {c.x1_shift_m:g} m, X4 on {c.x4_shift_m:g} m"
+                 if c.x1_shift_m or c.x4_shift_m else "")
         typer.echo(
             f"  {c.id:<12} {c.entrance_lane} -> {c.exit_lane}  length {c.s[-1]:6.1f} m  "
             f"curve {c.s[curve][-1] - c.s[curve][0] if curve.any() else 0.0:5.1f} m  "
-            f"max |curvature| {abs(c.curvature).max():.3f} 1/m"
+            f"rho {c.rho:.2f}  max curvature {c.max_curvature:.3f} 1/m{'!' if c.exceeds_limit else ''}{moved}"
         )
     if plot is not None:
         typer.echo(f"plot: {plot}")
@@ -219,21 +267,24 @@ def paths(
 @reports_errors
 def run(
     scenario: Annotated[Path, typer.Argument(metavar="SCENARIO.yaml", help="scenario file")],
-    policy: Annotated[str, typer.Option(help="'rule' or a trained checkpoint (.pt)")] = "rule",
+    policy: Annotated[str, typer.Option(help=POLICY_HELP)] = "rule",
     seed: Annotated[int | None, typer.Option(help="episode seed (default: the scenario's first run seed)")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="print the result as JSON")] = False,
     trace: Annotated[Path | None, typer.Option(metavar="OUT", help="save the episode's trace (.trace.npz)")] = None,
 ) -> None:
     """Run one episode of a scenario and print its outcome and travel time."""
     from crossroads.evaluation.episode import run_episode
-    from crossroads.evaluation.network_checks import internal_lane_warning
-    from crossroads.evaluation.policies import load_controller
+    from crossroads.evaluation.network_checks import internal_lane_warning, network_problems
+    from crossroads.evaluation.policies import load_controller, parse_policy
     from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config
     from crossroads.evaluation.trace import TraceRecorder
     from crossroads.sim.world import World
+    from crossroads.validation import SpecError
 
     spec = load_scenario(scenario)
-    controller = load_controller(policy)
+    if problems := network_problems(spec, scenario.parent):  # as evaluate and the API check it
+        raise SpecError(str(scenario), problems)
+    controller = load_controller(parse_policy(policy))
     if warning := internal_lane_warning(spec, scenario.parent):
         typer.secho(f"warning: {scenario}: {warning}", err=True, fg=typer.colors.YELLOW)
     episode_seed = run_seeds(spec, 1)[0] if seed is None else seed
@@ -255,6 +306,26 @@ def run(
         typer.echo(f"trace: {trace}")
 
 
+@app.command("export")
+@reports_errors
+def export_command(
+    scenario: Annotated[Path, typer.Argument(metavar="SCENARIO.yaml", help="scenario file")],
+    out: Annotated[Path, typer.Option("-o", "--out", metavar="DIR", help="directory to write the bundle into")],
+    seed: Annotated[int | None, typer.Option(
+        min=0, max=2**31 - 1, help="episode seed (default: the scenario's first run seed)")] = None,
+) -> None:
+    """Write one episode's SUMO bundle (net, seeded routes, additionals, .sumocfg) for sumo-gui."""
+    from crossroads.evaluation.scenario import load_scenario, run_seeds
+    from crossroads.evaluation.sumo_bundle import export_bundle
+
+    spec = load_scenario(scenario)
+    episode_seed = run_seeds(spec, 1)[0] if seed is None else seed
+    bundle = export_bundle(spec, episode_seed, out, base_dir=scenario.parent)
+    for path in bundle.files():
+        typer.echo(str(path))
+    typer.echo(f"seed {episode_seed}: sumo-gui -c {bundle.config}")
+
+
 TraceOption = Literal["all", "failed", "none"]
 
 
@@ -264,7 +335,7 @@ def evaluate(
     scenario: Annotated[Path | None, typer.Argument(
         metavar="SCENARIO.yaml|DIR", help="scenario file, or a directory of them")] = None,
     policy: Annotated[list[str] | None, typer.Option(
-        help="'rule' or a trained checkpoint (.pt); repeat to compare policies on the same seeds")] = None,
+        help=POLICY_HELP + "; repeat to compare policies on the same seeds")] = None,
     runs: Annotated[int | None, typer.Option(min=1, help="runs per batch (default: the scenario's runs)")] = None,
     workers: Annotated[int | None, typer.Option(min=1, help="worker processes (default: CPU count)")] = None,
     ray: Annotated[str | None, typer.Option(
@@ -346,6 +417,8 @@ def _batch_line(r: Any) -> str:
     travel = "n/a" if r.travel_time_mean_s is None else (
         f"{r.travel_time_mean_s:.2f} ± {r.travel_time_std_s or 0.0:.2f} s")
     outcomes = ", ".join(f"{k} {v}" for k, v in r.outcome_counts.items() if v)
+    if getattr(r, "blocked", 0):
+        outcomes += f" (blocked by the world: {r.blocked})"
     return (f"batch {r.batch_id}: {r.scenario} x {r.policy} [{r.status}]: pass rate {rate}; "
             f"errors {r.errors}; outcomes: {outcomes or 'none'}; travel time {travel}")
 

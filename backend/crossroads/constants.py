@@ -1,8 +1,8 @@
-"""Every number of the paper (../shared/SPEC.md) in one place, with its unit and its source.
+"""Every number of the paper (docs/paper.md) in one place, with its unit and its source.
 
 Nothing here is ever reassigned at run time: configurable values (ρ of the planner, V_limit, traffic
-densities, ...) take these as their defaults. Sections refer to the paper; "(choice)" marks a
-project decision where the paper is silent (see SPEC.md).
+densities, ...) take these as their defaults. Sections ("§4", "SPEC §4" elsewhere in the code) are
+those of docs/paper.md; "(choice)" marks a project decision where the paper is silent.
 """
 
 from __future__ import annotations
@@ -28,7 +28,15 @@ PEDESTRIANS_PER_HOUR_PER_LANE: Final = 100.0  # [ped/h] per entrance lane
 GREEN_S: Final = 60.0  # [s] green of the ego's axis
 YELLOW_S: Final = 3.0  # [s] yellow after every green
 RED_S: Final = 40.0  # [s] red seen by the ego's approach
-CROSS_GREEN_S: Final = RED_S - YELLOW_S  # [s] (choice) cross axis G37/Y3, so the ego sees R40
+# [s] (choice) an all-red after every yellow, as real signals give: a left-turner waiting inside
+# the junction clears before the cross traffic starts (without it, none did before the next green)
+ALL_RED_S: Final = 2.0
+# [s] (choice) the cross axis' green: AR2/G33/Y3/AR2, so the ego still sees R40
+CROSS_GREEN_S: Final = RED_S - YELLOW_S - 2.0 * ALL_RED_S
+# [s] (choice) a crossing's walk ends this long before the parallel vehicles' green does (the
+# pedestrian clearance of real signals): the crossing empties and the turners that yield to it go
+PEDESTRIAN_CLEARANCE_S: Final = 10.0
+CYCLE_S: Final = GREEN_S + YELLOW_S + ALL_RED_S + CROSS_GREEN_S + YELLOW_S + ALL_RED_S  # [s] 103
 SIM_STEP_S: Final = 0.1  # [s] SUMO step and control period (Δt of f_ego)
 
 # Kinds of traffic participants, in the order of x_other (SPEC §4) and of every kind code.
@@ -113,12 +121,12 @@ EGO_WIDTH_M: Final = 2.0  # [m]
 # half the ego's width. SUMO puts the ego where it projects onto that internal lane, and its
 # junction model and its drivers' leaders see it there; beyond half a car's width that place is
 # more than half a car from where the ego drives. netconvert's own lanes on the catalogue's nets
-# ran up to 2.55 m off the left turns (docs/measurements/ego-in-sumo.md); its builds now draw them
+# ran up to 2.55 m off the left turns (docs/tried/world.md); its builds now draw them
 # along the paths (network/build.py), but a user's net keeps its own.
 INTERNAL_LANE_OFFSET_WARN_M: Final = EGO_WIDTH_M / 2.0  # [m]
 # (choice) How far before the stop line the stop profile reaches 0: the paths are of the ego's
 # centre, and the judge (and the law) mean its front bumper. Without it the stop mode brought the
-# centre to rest on the line with the bumper 2.4 m past it: measured (session 18), the rule
+# centre to rest on the line with the bumper 2.4 m past it: measured, the rule
 # controller and APG both crossed a red line on an empty road, at 3.4 and 5.3 m/s.
 STOP_SHORT_M: Final = EGO_LENGTH_M / 2.0  # [m]
 # (choice) where a controller stands at a line that holds it: its front bumper this far short, so

@@ -5,13 +5,45 @@ Fails fast: a bad value is an error naming the setting when the service starts, 
 
 from __future__ import annotations
 
+import ipaddress
+import os
+import re
 from pathlib import Path
+from typing import Annotated, Any
 
-from pydantic import Field, field_validator
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic import Field, SecretStr, field_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 DEFAULT_DATA_DIR = Path.home() / ".local" / "share" / "crossroads"
 SUPPORTED_DB_SCHEMES = ("sqlite", "postgresql")
+LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")  # what a browser on this machine calls it
+WILDCARD_HOSTS = ("0.0.0.0", "::", "")  # listen on every interface
+MAX_BATCH_WORKERS = 64  # worker processes of one batch, at most (each holds a SUMO and ~130 MB)
+MIN_TOKEN_CHARS = 16
+TOKEN_CHARS = re.compile(r"[A-Za-z0-9._~-]+")
+
+
+def host_name(host: str) -> str:
+    """``[::1]`` → ``::1``; ``LocalHost.`` → ``localhost``: the comparable form of a host name."""
+    name = host.strip().lower()
+    if name.startswith("[") and name.endswith("]"):
+        name = name[1:-1]
+    return name.rstrip(".")
+
+
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` (a name or an address) only reaches this machine."""
+    name = host_name(host)
+    if name == "localhost" or name.endswith(".localhost"):
+        return True
+    try:
+        return ipaddress.ip_address(name).is_loopback
+    except ValueError:
+        return False
+
+
+def _default_workers() -> int:
+    return max(1, min(os.cpu_count() or 1, MAX_BATCH_WORKERS))
 
 
 class Settings(BaseSettings):
@@ -35,6 +67,31 @@ class Settings(BaseSettings):
         description="at start, resume the batches a previous API process left queued or running "
         "(turn off when another process, e.g. `crossroads evaluate`, runs batches of the same store)",
     )
+    token: SecretStr | None = Field(
+        None, min_length=MIN_TOKEN_CHARS,
+        description="access token every request must carry when the API listens beyond this machine "
+        "(`Authorization: Bearer <token>`, or the cookie the page gets from `/?token=<token>`); "
+        "`crossroads serve` generates one when none is given",
+    )
+    allowed_hosts: Annotated[tuple[str, ...], NoDecode] = Field(
+        (), description="host names (or addresses) the API answers to besides localhost and the "
+        "interface it listens on: the names a browser uses to reach it (comma-separated in the "
+        "environment; '*' answers to any, leaving only the token against DNS rebinding)",
+    )
+    max_batch_workers: int = Field(
+        default_factory=_default_workers, ge=1, le=MAX_BATCH_WORKERS,
+        description="most worker processes one batch may ask for (default: one per CPU)",
+    )
+    episode_wall_limit_s: float = Field(
+        900.0, gt=0.0, le=86_400.0,
+        description="[s] wall-clock time one episode of a batch may take, counted from when it is "
+        "handed to its worker (a fresh worker's start-up included); beyond it the episode is stopped "
+        "(its worker killed) and recorded as an error ('wall-clock limit')",
+    )
+    json_body_max_bytes: int = Field(
+        1 << 20, ge=1024, le=64 << 20,
+        description="[bytes] largest request body the API reads, except network uploads (their own limit)",
+    )
 
     @field_validator("db_url")
     @classmethod
@@ -49,6 +106,39 @@ class Settings(BaseSettings):
             )
         return url
 
+    @field_validator("token")
+    @classmethod
+    def _token_chars(cls, token: SecretStr | None) -> SecretStr | None:
+        # it travels in a header, a cookie and a URL: printable ASCII, none of their delimiters
+        if token is not None and not TOKEN_CHARS.fullmatch(token.get_secret_value()):
+            raise ValueError("use letters, digits and - . _ ~ only")
+        return token
+
+    @field_validator("allowed_hosts", mode="before")
+    @classmethod
+    def _host_list(cls, value: Any) -> Any:
+        if isinstance(value, str):  # CROSSROADS_ALLOWED_HOSTS=studio.lan,192.168.1.5
+            value = [part for part in value.split(",") if part.strip()]
+        if isinstance(value, list | tuple):
+            names = tuple(host_name(str(v)) for v in value)
+            bad = [n for n in names if not n or any(c in n for c in "/ @?#")]
+            if bad:
+                raise ValueError(f"not a host name: {bad[0]!r}")
+            return names
+        return value
+
     @property
     def database_url(self) -> str:
         return self.db_url or f"sqlite:///{self.data_dir / 'crossroads.db'}"
+
+    @property
+    def public(self) -> bool:
+        """Whether the API listens beyond this machine (then it needs a token)."""
+        return not is_loopback(self.host)
+
+    def answered_hosts(self) -> frozenset[str]:
+        """The host names (``Host`` header, port left out) the API answers to."""
+        names = {host_name(n) for n in LOOPBACK_NAMES} | set(self.allowed_hosts)
+        if host_name(self.host) not in WILDCARD_HOSTS:
+            names.add(host_name(self.host))
+        return frozenset(names)

@@ -5,6 +5,9 @@ import { clearErrors, showErrors } from "./form";
 
 const FINISHED = ["done", "cancelled", "failed"];
 let following: number | null = null; // the batch whose progress the bar shows
+const FOLLOWED_KEY = "crossroads.followed-batch"; // sessionStorage: the batch this tab followed last
+const LIST_POLL_MS = 3000; // the batch list is read again this often while a batch is unfinished
+let listTimer: number | undefined;
 
 function progressLine(batchId: number, p: Json): string {
   if (p.status === "queued") {
@@ -51,6 +54,7 @@ export function follow(batchId: number, done: () => void): void {
   const bar = $<HTMLProgressElement>("#progress");
   const text = $("#progress-text");
   following = batchId;
+  sessionStorage.setItem(FOLLOWED_KEY, String(batchId));
   bar.hidden = false;
   bar.value = 0;
   text.textContent = `batch #${batchId}: starting…`;
@@ -80,6 +84,29 @@ export function follow(batchId: number, done: () => void): void {
     finish(batchId, done);
     void showBatch(batchId);
   };
+}
+
+/** After a reload: follow again the batch this tab followed (or else the newest unfinished one),
+ *  from its event stream; a batch that has ended meanwhile is shown finished, with its results. */
+export async function reattach(list: Json[], done: () => void = () => undefined): Promise<void> {
+  const stored = Number(sessionStorage.getItem(FOLLOWED_KEY));
+  let batch: Json | undefined = list.find((b) => b.id === stored);
+  if (!batch && stored > 0) batch = await api(`/api/batches/${stored}`).catch(() => undefined);
+  const unfinished = list.find((b) => !FINISHED.includes(b.status));
+  if (!batch || (FINISHED.includes(batch.status) && unfinished)) batch = unfinished;
+  if (!batch) return;
+  if (!FINISHED.includes(batch.status)) {
+    follow(batch.id, done);
+    return;
+  }
+  const bar = $<HTMLProgressElement>("#progress");
+  const text = $("#progress-text");
+  bar.hidden = false;
+  bar.value = batch.progress.total ? batch.progress.done / batch.progress.total : 1;
+  text.textContent = `batch #${batch.id} ${batch.status}`;
+  text.dataset.status = batch.status;
+  showCancel(null);
+  await showBatch(batch.id);
 }
 
 function finish(batchId: number, done: () => void): void {
@@ -199,10 +226,17 @@ async function refreshCompare(list: Json[]): Promise<void> {
     <tbody>${scenarios.map(([sid, name]) => `<tr><th>${esc(name)} <span class="hint">#${sid}</span></th>${policies.map((p) => compareCell(full, sid, p)).join("")}</tr>`).join("")}</tbody></table>`;
 }
 
-export async function refreshBatches(): Promise<void> {
+/** The batch list and the comparison; read again every few seconds while a batch in it is
+ *  unfinished, so its status, progress and Cancel button keep up. Answers the list. */
+export async function refreshBatches(): Promise<Json[]> {
+  window.clearTimeout(listTimer);
   const list: Json[] = await api("/api/batches?limit=50");
+  if (list.some((b) => !FINISHED.includes(b.status))) {
+    listTimer = window.setTimeout(() => void refreshBatches().catch(() => undefined), LIST_POLL_MS);
+  }
   $("#batches").innerHTML = list.length
     ? `<table><thead><tr><th>#</th><th>Scenario</th><th>Policy</th><th>Status</th><th>Progress</th><th></th></tr></thead><tbody>${list.map(batchRow).join("")}</tbody></table>`
     : '<p class="hint">No batches yet.</p>';
   await refreshCompare(list);
+  return list;
 }

@@ -82,6 +82,15 @@ function markField(root: ParentNode, loc: string, msg: string): boolean {
   return true;
 }
 
+/** Fields the page shows in percent while the API takes a fraction: their errors' numbers are
+ *  said in percent too ("-50 %", not "-0.5"). */
+const PERCENT_FIELDS = new Set(["abnormal.overspeed.excess"]);
+
+function inFieldUnits(loc: string, msg: string): string {
+  if (!PERCENT_FIELDS.has(loc)) return msg;
+  return msg.replace(/-?\d+(\.\d+)?(e-?\d+)?/gi, (n) => `${Math.round(Number(n) * 1e6) / 1e4} %`);
+}
+
 /** Show an API error: each 422 item next to the field it names (``loc`` without the leading
  * ``strip`` parts, e.g. body.scenario for an inline scenario); the rest in ``general``. */
 export function showErrors(err: unknown, { root = form as ParentNode, general = $("#form-error"),
@@ -92,7 +101,8 @@ export function showErrors(err: unknown, { root = form as ParentNode, general = 
       const parts: unknown[] = [...(d.loc ?? [])];
       for (const s of strip) if (parts[0] === s) parts.shift();
       const loc = parts.join(".");
-      if (!markField(root, loc, d.msg)) rest.push(`${loc || "scenario"}: ${d.msg}`);
+      const msg = inFieldUnits(loc, d.msg);
+      if (!markField(root, loc, msg)) rest.push(`${loc || "scenario"}: ${msg}`);
     }
   } else {
     rest.push(err instanceof ApiError ? String(err.detail) : String(err));

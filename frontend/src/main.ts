@@ -1,14 +1,17 @@
 // Crossroads studio: the scenario editor, batch runner, live runs and results browser (plain TypeScript).
 import "./style.css";
-import { $, api, esc, Json, post } from "./api";
-import { cancelBatch, refreshBatches, runBatch, showBatch } from "./batches";
+import { $, api, Json, post } from "./api";
+import { cancelBatch, reattach, refreshBatches, runBatch, showBatch } from "./batches";
+import { applyDraft, loadDraft, saveDraft } from "./draft";
 import { clearErrors, field, form, scenarioBody, showErrors } from "./form";
 import {
   catalogueSource, currentSource, fillApproaches, fillLanes, fillPhases, geometryOf, limitElapsed,
   setSources, uploadSource,
 } from "./intersections";
 import { startLive, stopLive } from "./live";
+import { fillPolicies, initPolicyUploads } from "./policies";
 import { drawPreview } from "./preview";
+import { initSearches } from "./searches";
 import { uploadNetwork } from "./upload";
 
 let scenarioId: number | null = null; // the saved scenario the form shows; null once edited
@@ -17,6 +20,7 @@ const policy = () => $<HTMLSelectElement>("#policy").value;
 async function save(ev: Event): Promise<void> {
   ev.preventDefault();
   clearErrors();
+  $("#save-error").textContent = "";
   try {
     const s = await post("/api/scenarios", scenarioBody());
     scenarioId = s.id;
@@ -25,6 +29,24 @@ async function save(ev: Event): Promise<void> {
   } catch (e) {
     forget();
     showErrors(e);
+    pointAtErrors();
+  }
+}
+
+/** After a refused save: say so beside the button, and bring the first field in error into view
+ *  (it may be far above or below the button). */
+function pointAtErrors(): void {
+  const first = form.querySelector<HTMLElement>(".invalid");
+  const count = form.querySelectorAll(".field-error").length;
+  const general = $("#form-error").textContent ?? "";
+  if (first) {
+    const label = (first.closest("label")?.firstChild?.textContent ?? first.getAttribute("name") ?? "").trim();
+    $("#save-error").textContent = `Not saved: ${count} field${count > 1 ? "s" : ""} to fix`
+      + (label ? ` (first: ${label})` : "") + (general ? `; ${general}` : "");
+    first.scrollIntoView({ block: "center" });
+    first.focus({ preventScroll: true });
+  } else {
+    $("#save-error").textContent = `Not saved: ${general}`;
   }
 }
 
@@ -33,6 +55,7 @@ function forget(): void {
   scenarioId = null;
   $<HTMLButtonElement>("#run").disabled = true;
   $("#saved").textContent = "";
+  $("#save-error").textContent = "";
 }
 
 /** The choices that depend on the network, after the intersection (or approach, task, lane)
@@ -78,6 +101,8 @@ function wire(): void {
   };
   form.addEventListener("input", edited);
   form.addEventListener("change", edited);
+  form.addEventListener("input", saveDraft);
+  form.addEventListener("change", saveDraft);
   form.addEventListener("submit", (ev) => void save(ev));
   $("#upload").addEventListener("click", async () => {
     if (await uploadNetwork()) {
@@ -97,15 +122,32 @@ function wire(): void {
   });
 }
 
+/** The form as this tab left it (after a reload), else its defaults: the network's choices are
+ *  filled in steps, each from the draft's value of the step before. */
+async function restoreForm(): Promise<void> {
+  const draft = loadDraft();
+  if (draft) applyDraft(draft); // the network's own choices are refilled below, then set again
+  await networkChanged("intersection");
+  if (!draft) return;
+  applyDraft(draft, ["approach"]);
+  await networkChanged("approach");
+  applyDraft(draft);
+  const source = currentSource();
+  if (source) limitElapsed(await geometryOf(source));
+  await drawPreview();
+}
+
 async function init(): Promise<void> {
   const [intersections, uploads, policies] = await Promise.all([
     api("/api/intersections"), api("/api/intersections/uploads"), api("/api/policies")]);
   setSources((intersections as Json[]).map(catalogueSource), (uploads as Json[]).map(uploadSource));
-  $<HTMLSelectElement>("#policy").innerHTML = (policies as Json[])
-    .map((p) => `<option value="${esc(p.name)}">${esc(p.name)}${p.kind !== "checkpoint" ? "" : p.shield ? " (checkpoint + safety shield)" : " (checkpoint)"}</option>`).join("");
+  initPolicyUploads();
+  fillPolicies(policies as Json[]);
   wire();
+  initSearches(() => scenarioId, policy);
   await egoDefaults();
-  await Promise.all([networkChanged("intersection"), refreshBatches()]);
+  const [, batches] = await Promise.all([restoreForm(), refreshBatches()]);
+  await reattach(batches);
 }
 
 init().catch((e) => { $("#form-error").textContent = `cannot reach the API: ${e}`; });

@@ -19,6 +19,7 @@ from crossroads.api.main import create_app
 from crossroads.settings import Settings
 
 UPLOAD_LIMIT_BYTES = 256 * 1024  # small, so "too big" is cheap to make
+LOCAL_URL = "http://127.0.0.1"  # the API answers to localhost names only (not the test client's "testserver")
 BATCH_TIMEOUT_S = 120.0
 
 # A short, quiet episode (SUMO warm-up 5 s, 5 s of ego time, little traffic).
@@ -46,7 +47,7 @@ def models_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def client(data_dir: Path, models_dir: Path) -> Iterator[TestClient]:
     settings = Settings(data_dir=data_dir)
     options = ApiOptions(upload_max_bytes=UPLOAD_LIMIT_BYTES, models_dir=models_dir)
-    with TestClient(create_app(settings, options)) as test_client:
+    with TestClient(create_app(settings, options), base_url=LOCAL_URL) as test_client:
         yield test_client
 
 

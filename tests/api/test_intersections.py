@@ -8,11 +8,13 @@ from fastapi.testclient import TestClient
 from crossroads.api.main import create_app
 from crossroads.settings import Settings
 
+from .conftest import LOCAL_URL  # noqa: TID252
+
 
 @pytest.fixture(scope="module")
 def client(tmp_path_factory: pytest.TempPathFactory) -> TestClient:
     settings = Settings(data_dir=tmp_path_factory.mktemp("data"))
-    return TestClient(create_app(settings))
+    return TestClient(create_app(settings), base_url=LOCAL_URL)
 
 
 def test_health(client: TestClient) -> None:

@@ -16,7 +16,7 @@ from blocked_lane import StandingDriver, bars_every_path, drive  # noqa: E402
 
 NOMINAL_LEFT = REPO_ROOT / "scenarios" / "nominal" / "c_three_lane-left.yaml"
 # a seed of the nominal left turn whose queue ahead of the ego never moves in 60 s (measured with
-# the rule controller, APG + shield and the standing driver alike, docs/measurements/world-gridlock.md)
+# the rule controller, APG + shield and the standing driver alike, docs/tried/world.md)
 HELD_SEED = 556745865
 
 

@@ -73,12 +73,23 @@ def test_author_run_and_play_back(studio_url: str, browser: Any, artifacts: Path
     page.fill("input[name=name]", "e2e-overspeed")
     page.check("input[name='overspeed.on']")
     page.fill("input[name='abnormal.overspeed.share']", "1.5")
+    page.fill("input[name='abnormal.overspeed.excess']", "-50")
+    page.evaluate("window.scrollTo(0, document.body.scrollHeight)")  # the fields off-screen
     page.click("#save")
     error = page.locator(".field-error[data-for='abnormal.overspeed.share']")
     error.wait_for()
     assert "1" in error.inner_text()
+    # the excess is typed in percent: its error says percent too
+    excess = page.locator(".field-error[data-for='abnormal.overspeed.excess']").inner_text()
+    assert "0 %" in excess and "0.5" not in excess, excess
+    # said beside the button, and the first field in error brought into view
+    assert page.inner_text("#save-error").startswith("Not saved: 2 fields to fix (first: Share")
+    assert page.evaluate("document.activeElement.name") == "abnormal.overspeed.share"
+    box = page.locator("input[name='abnormal.overspeed.share']").bounding_box()
+    assert box is not None and 0 <= box["y"] <= 1100
     page.screenshot(path=str(artifacts / "02-field-error.png"), full_page=True)
     page.fill("input[name='abnormal.overspeed.share']", "0.5")
+    page.fill("input[name='abnormal.overspeed.excess']", "20")
     page.select_option("select[name='lights.phase']", "1")
     page.fill("input[name='lights.elapsed_s']", "5")  # phase 1 lasts 3 s
     page.click("#save")

@@ -127,6 +127,7 @@ def test_two_policies_meet_the_same_seeds(store: Store, spec: ScenarioSpec, tmp_
             update={"seed": batch_b.base_seed}), batch_b.runs) == seeds
 
 
+@pytest.mark.slow
 def test_local_ray_executor(store: Store, spec: ScenarioSpec, tmp_path: Path) -> None:
     ray = pytest.importorskip("ray")
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
@@ -194,12 +195,13 @@ def test_cli_evaluate_checks_the_network_before_any_batch(tmp_path: Path) -> Non
 def test_cli_evaluate_warns_when_the_egos_internal_lanes_run_off_its_paths(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """SUMO's example cross.net.xml, netconvert's lanes: the left turns' internal lanes run up to
-    3.1 m from the candidate paths. The batch runs, with a warning naming the net and the movement."""
+    3.1 m from the paper's candidate paths (ρ = 0.6). The batch runs, with a warning naming the net
+    and the movement."""
     from support import SUMO_CROSS_NET, sumo_example
 
     monkeypatch.setenv("CROSSROADS_DATA_DIR", str(tmp_path / "data"))
     path = tmp_path / "cross-left.yaml"
-    path.write_text(yaml.safe_dump({**TINY, "name": "cross-left",
+    path.write_text(yaml.safe_dump({**TINY, "name": "cross-left", "rho": 0.6,
                                     "intersection": {"net": str(sumo_example(SUMO_CROSS_NET))}}))
     db = f"sqlite:///{tmp_path / 'cli.db'}"
     out = CliRunner().invoke(app, ["evaluate", str(path), "--policy", "rule", "--runs", "1", "--workers", "1",
@@ -223,13 +225,13 @@ def test_cli_evaluate_warns_when_the_egos_internal_lanes_run_off_its_paths(
 
 def test_a_batch_keeps_the_warning_its_network_gave_when_it_was_created(
         store: Store, spec: ScenarioSpec, tmp_path: Path) -> None:
-    """A batch on cross.net.xml (netconvert's left turns up to 3.1 m off the candidate paths, the
-    net given relative to base_dir) stores the warning; one on a catalogue net stores none."""
+    """A batch on cross.net.xml (netconvert's left turns up to 3.1 m off the paper's candidate
+    paths, the net given relative to base_dir) stores the warning; one on a catalogue net stores none."""
     from support import SUMO_CROSS_NET, sumo_example
 
     (tmp_path / "cross.net.xml").write_bytes(sumo_example(SUMO_CROSS_NET).read_bytes())
     path = tmp_path / "cross-left.yaml"
-    path.write_text(yaml.safe_dump({**TINY, "name": "cross-left", "intersection": {"net": "cross.net.xml"}}))
+    path.write_text(yaml.safe_dump({**TINY, "name": "cross-left", "rho": 0.6, "intersection": {"net": "cross.net.xml"}}))
     flagged = create_batch_for(store, spec=load_scenario(path), policy="rule", runs=1, base_dir=path.parent)
     catalogue = create_batch_for(store, spec=spec, policy="rule", runs=1)
     with store.session() as s:

@@ -42,6 +42,7 @@ def test_episode_with_traffic_is_traced_and_reproducible() -> None:
     assert first.min_distance_m > 0.0
 
 
+@pytest.mark.slow
 def test_the_shield_switching_on_and_off_is_an_event() -> None:
     import torch
 

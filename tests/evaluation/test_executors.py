@@ -22,8 +22,8 @@ from crossroads.evaluation.scenario import load_scenario, run_seeds
 
 NOMINAL_LEFT = REPO_ROOT / "scenarios" / "nominal" / "c_three_lane-left.yaml"
 # A seed whose SUMO traffic depends on the process's memory: with the rule controller, run first
-# it times out; run after the first three seeds in the same process it passed (measured, session 27:
-# docs/measurements/determinism.md). Whether it flips on another host is not ours to say; that the
+# it times out; run after the first three seeds in the same process it passed (measured:
+# docs/tried/world.md, "Same seed, same episode"). Whether it flips on another host is not ours to say; that the
 # forked worker gives the same report either way is.
 SENSITIVE_SEED = 2090914255
 
@@ -41,6 +41,7 @@ def run_tasks(tasks: list[EpisodeTask], job: WorkerJob | None = None) -> list[Ep
     return reports
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not FORK_EPISODES, reason="episodes run in a forked child only where fork exists")
 def test_an_episode_ends_the_same_whatever_its_worker_ran_before() -> None:
     """The sensitive seed run first by a worker, then by another worker after each of six different

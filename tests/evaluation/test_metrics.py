@@ -219,3 +219,21 @@ def test_mcnemar_large_counts_fast_and_sane() -> None:
     assert 0.1 < p < 1.0
     assert mcnemar_p_value(10_000, 10_000) == 1.0
     assert mcnemar_p_value(9_000, 11_000) < 1e-40
+
+
+def test_blocked_by_the_world_is_counted_apart_and_still_judged() -> None:
+    from crossroads.evaluation.metrics import is_blocked
+
+    blocked_event = {"t": 206.0, "event": "blocked_by",
+                     "value": {"participant": "veh3", "kind": "vehicle", "stood_s": 204.0, "ahead_m": 9.0}}
+    results = [
+        {"seed": 1, "outcome": "passed", "travel_time_s": 10.0},
+        {"seed": 2, "outcome": "timeout", "events": [blocked_event]},  # as the store keeps it
+        {"seed": 3, "outcome": "timeout", "blocked_by": {"participant": "bike1"}},  # EpisodeResult
+        {"seed": 4, "outcome": "timeout", "events": [{"t": 1.0, "event": "speed_mode", "value": "stop"}]},
+        {"seed": 5, "outcome": "error", "error": "boom", "blocked_by": {"participant": "x"}},
+    ]
+    assert [is_blocked(r) for r in results] == [False, True, True, False, False]
+    s = summarize(results)
+    assert s.blocked == 2
+    assert s.valid == 4 and s.pass_rate == 0.25  # the paper's definition: passed / judged

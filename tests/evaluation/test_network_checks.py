@@ -11,27 +11,33 @@ from crossroads.evaluation import network_checks
 from crossroads.evaluation.network_checks import batch_warnings, internal_lane_warning, network_problems
 from crossroads.evaluation.scenario import ScenarioSpec, validate_scenario
 from crossroads.planning.routes import PlanningError
-from support import SUMO_CROSS_NET, sumo_example
+from crossroads.validation import SpecError
+from support import COLOGNE1_NET, SUMO_CROSS_NET, sumo_example
+
+BS3D_NET = "tools/game/bs3d/bs.net.xml"
 
 
-def left_turn(intersection: str | dict[str, str]) -> ScenarioSpec:
+def left_turn(intersection: str | dict[str, str], **fields: object) -> ScenarioSpec:
     return validate_scenario({"version": 1, "name": "checked-left", "intersection": intersection,
-                              "task": "left"}, check_references=False)
+                              "task": "left", **fields}, check_references=False)
 
 
 def test_a_batch_on_a_net_whose_internal_lanes_run_off_the_paths_keeps_the_warning(tmp_path: Path) -> None:
-    """SUMO's example cross.net.xml: netconvert's left turns run up to 3.1 m from the candidate
-    paths. The net has no problems (a batch may run on it), and the batch keeps the one warning
-    `crossroads evaluate` prints, relative net paths resolved against base_dir as the world does."""
+    """SUMO's example cross.net.xml: netconvert's left turns run up to 3.1 m from the paper's
+    candidate paths (ρ = 0.6). The net has no problems (a batch may run on it), and the batch keeps
+    the one warning `crossroads evaluate` prints, relative net paths resolved against base_dir as
+    the world does."""
     net = sumo_example(SUMO_CROSS_NET)
-    spec = left_turn({"net": str(net)})
+    spec = left_turn({"net": str(net)}, rho=0.6)
     assert network_problems(spec) == []
     warnings = batch_warnings(spec)
     assert warnings == [internal_lane_warning(spec)]
     assert "cross.net.xml (left from" in warnings[0] and "crossroads net check" in warnings[0]
 
     (tmp_path / "cross.net.xml").write_bytes(net.read_bytes())
-    assert batch_warnings(left_turn({"net": "cross.net.xml"}), tmp_path) == warnings
+    assert batch_warnings(left_turn({"net": "cross.net.xml"}, rho=0.6), tmp_path) == warnings
+    # the paths the planner chooses (ρ per path) run within 1 m of netconvert's left turns
+    assert batch_warnings(left_turn({"net": str(net)})) == []
 
 
 def test_a_batch_on_a_catalogue_net_keeps_none() -> None:
@@ -62,3 +68,43 @@ def test_anything_but_an_odd_shape_is_raised(monkeypatch: pytest.MonkeyPatch) ->
     monkeypatch.setattr(network_checks, "internal_lane_warning", broken)
     with pytest.raises(KeyError):
         batch_warnings(left_turn("c_three_lane"))
+
+
+# --- the ego's start and light: one validation for run, evaluate, the API and the studio ----------
+
+
+def test_the_start_is_checked_along_the_road_before_the_lane() -> None:
+    """cologne1's south-west approach: lanes of 41 m, 89 m of road before the stop line. The
+    default 40 m starts on the edge before; 500 m is refused, naming the longest start."""
+    net = {"net": str(COLOGNE1_NET)}
+    assert network_problems(left_turn(net, approach="27115123#3")) == []
+    problems = network_problems(left_turn(net, approach="27115123#3", ego={"start_distance_m": 500.0}))
+    assert len(problems) == 1 and problems[0][0] == "ego.start_distance_m"
+    assert "the road leading to it (27115123#2 -> 27115123#3) is 89.3 m long, so the ego can start at " \
+           "most 84.5 m before the line" in problems[0][1]
+
+
+@pytest.mark.parametrize("light", ["green", "yellow", "red"])
+def test_the_ego_s_light_is_found_in_the_junction_s_own_program(light: str) -> None:
+    assert network_problems(left_turn("b_two_lane", lights={"ego": light, "elapsed_s": 1.0})) == []
+
+
+def test_a_light_the_program_never_shows_is_refused_naming_the_programs_that_do() -> None:
+    """SUMO's bs3d game net: one static program per stage of the game, SUMO running the last, which
+    never shows the ego's movement green."""
+    spec = left_turn({"net": str(sumo_example(BS3D_NET))})
+    problems = network_problems(spec)
+    assert [f for f, _ in problems] == ["lights.ego"]
+    assert "is never green: it shows" in problems[0][1]
+    assert problems[0][1].endswith("show it green (lights.program)")
+    chosen = problems[0][1].rsplit("program(s) '", 1)[1].split("'")[0]
+    assert network_problems(left_turn({"net": str(sumo_example(BS3D_NET))}, lights={"program": chosen})) == []
+    unknown = network_problems(left_turn({"net": str(sumo_example(BS3D_NET))}, lights={"program": "night"}))
+    assert unknown[0][0] == "lights.program" and "has no program 'night'; its programs: '0', '1', '2', '3'" in unknown[0][1]
+
+
+def test_an_exact_phase_is_still_checked() -> None:
+    problems = network_problems(left_turn("b_two_lane", lights={"phase": 99}))
+    assert problems[0][0] == "lights.phase"
+    with pytest.raises(SpecError, match="give either ego"):
+        left_turn("b_two_lane", lights={"phase": 0, "ego": "green"})

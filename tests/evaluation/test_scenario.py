@@ -74,10 +74,15 @@ def write(tmp_path: Path, data: Any, name: str = "s.yaml") -> Path:
 
 def test_defaults_are_the_paper_values() -> None:
     spec = validate_scenario(MINIMAL)
-    assert spec.runs == 200 and spec.seed == 0 and spec.rho == 0.6 and spec.perception_noise
+    # ρ: None = chosen per candidate path within the ego's steering limit (planning.curves)
+    assert spec.runs == 200 and spec.seed == 0 and spec.rho is None and spec.perception_noise
     assert (spec.traffic.vehicles_per_hour, spec.traffic.cyclists_per_hour,
             spec.traffic.pedestrians_per_hour) == (400.0, 100.0, 100.0)
-    assert (spec.lights.phase, spec.lights.elapsed_s) == (0, 0.0)
+    # the ego's own light green at entry, on any net (phase 0 is green only on the catalogue's)
+    assert (spec.lights.ego, spec.lights.phase, spec.lights.elapsed_s) == (None, None, 0.0)
+    assert spec.lights.ego_light == "green" and spec.lights.program is None
+    cfg = to_world_config(spec)
+    assert (cfg.signal_start.phase_index, cfg.signal_start.ego_light, cfg.rho) == (None, "green", None)
     assert spec.ego.start_speed_mps == pytest.approx(0.8 * 37.5 / 3.6)
     assert spec.abnormal.overspeed is None and spec.abnormal.rounding is None
 
@@ -161,6 +166,8 @@ def test_spec_is_frozen_and_hashable() -> None:
     ({"ego.start_speed_mps": -1.0}, "ego.start_speed_mps"),
     ({"lights.phase": -1}, "lights.phase"),
     ({"lights.elapsed_s": -0.1}, "lights.elapsed_s"),
+    ({"lights.ego": "blue"}, "lights.ego"),
+    ({"lights.ego": "red", "lights.phase": 2}, "lights.phase"),
     ({"timeout_s": 0.0}, "timeout_s"),
     ({"warmup_s": -5.0}, "warmup_s"),
     ({"seed": -1}, "seed"),
@@ -223,7 +230,8 @@ def test_json_schema_covers_every_field() -> None:
     for name, prop in schema["properties"].items():
         assert prop.get("description"), f"{name} has no description"
     assert defs["OverspeedSpec"]["properties"]["share"]["maximum"] == 1.0
-    assert schema["properties"]["rho"]["exclusiveMaximum"] == 1.0
+    rho = next(o for o in schema["properties"]["rho"]["anyOf"] if o.get("type") == "number")
+    assert rho["exclusiveMaximum"] == 1.0
 
 
 def test_content_hash_is_canonical_and_sensitive() -> None:
@@ -233,7 +241,7 @@ def test_content_hash_is_canonical_and_sensitive() -> None:
     assert content_hash(validate_scenario(reordered)) == h
     # stating a default explicitly or writing 200 as an int or float changes nothing
     assert content_hash(validate_scenario(MINIMAL)) == content_hash(
-        validate_scenario(with_({"runs": 200, "rho": 0.6, "traffic.vehicles_per_hour": 400})))
+        validate_scenario(with_({"runs": 200, "rho": None, "traffic.vehicles_per_hour": 400})))
     for change in ({"seed": 100}, {"runs": 11}, {"abnormal.rounding.share": 0.11}, {"rho": 0.51},
                    {"ego.entrance_lane": "south_in_2"}, {"name": "other"}, {"approach": None}):
         assert content_hash(validate_scenario(with_(change, FULL))) != h, change
@@ -244,7 +252,7 @@ def test_content_hash_is_pinned() -> None:
     # changes (on purpose) when a default changes: the defaults are part of what a file means.
     spec = validate_scenario(MINIMAL)
     assert content_hash(spec) == (
-        "386f891a4936960e693074de0bfde949c5838b2f70ea760061f978d822da0524"), content_hash(spec)
+        "1815cf17f9c72a1a91780a2758f16ab07b51b4873b83fcfa170d5ac34fc79df2"), content_hash(spec)
 
 
 def test_run_seeds_are_deterministic_and_independent_of_the_count() -> None:

@@ -78,12 +78,12 @@ def test_the_shield_keeps_the_policys_action_or_brakes_with_the_wheel_held() -> 
 @pytest.mark.parametrize("model", ["apg.pt", "dpg.pt"])
 def test_with_the_shield_a_shipped_model_stands_short_of_a_red_line(model: str) -> None:
     """On an empty road, starting 40 m from a red line at 8.33 m/s: bare, the shipped APG crossed
-    the line on red at 4.7 m/s (docs/measurements/red-lights.md); with the shield, which treats the
+    the line on red at 4.7 m/s (docs/tried/world.md, "Red lights"); with the shield, which treats the
     line as a standing obstacle while the light holds the ego, the bumper stands 0.50 m short until
     green (measured: 0.500–0.505 m for APG, 0.501–0.502 m for DPG)."""
     controller = IdcController.from_checkpoint(REPO_ROOT / "models" / model, shield=True)
     config = WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", demand=NO_TRAFFIC,
-                         signal_start=SignalStart(phase_index=2), warmup_s=1.0, timeout_s=60.0)
+                         signal_start=SignalStart(ego_light="red"), warmup_s=1.0, timeout_s=60.0)
     gaps_standing_on_red = []
     with World(config) as world:
         obs = world.reset(0)

@@ -196,8 +196,8 @@ def test_after_braking_go_must_clear_by_the_release_margin() -> None:
 
 def test_braking_holds_the_wheel_it_was_checked_with() -> None:
     """The backups hold the wheel after their first step, so a braking step must too: a policy that
-    steers back towards a car the held wheel would have passed (the nominal left turn's queue,
-    session 21) is not followed while the shield brakes."""
+    steers back towards a car the held wheel would have passed (the nominal left turn's queue) is
+    not followed while the shield brakes."""
     swerving = EGO.copy()
     swerving[6] = 0.1  # the wheel turned left
     steer_right_and_go = np.array([-0.4, JERK_MAX])

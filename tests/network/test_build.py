@@ -133,7 +133,8 @@ def test_signal_program_of_spec_section_2(nets: dict[str, Path], name: str) -> N
     assert straight
     for k in straight:
         assert seconds_in(k.link_index) == {"G": 60.0, "y": 3.0, "r": 40.0}
-        assert [s[k.link_index] for _, s in program] == ["G", "y", "r", "r"]
+        # walk, pedestrian clearance, yellow, all-red; the cross axis' four stages
+        assert [s[k.link_index] for _, s in program] == ["G", "G", "y", "r", "r", "r", "r", "r"]
     for k in links:
         if k.turn == "right":
             assert set(seconds_in(k.link_index)) == {"g"}
@@ -274,3 +275,17 @@ def test_internal_lanes_follow_the_candidate_paths(nets: dict[str, Path], name: 
 
 def _points(shape: str) -> np.ndarray:
     return np.array([[float(v) for v in xy.split(",")[:2]] for xy in shape.split()])
+
+
+def test_a_kerb_radius_rounds_the_corners_and_moves_the_stop_lines_back(tmp_path: Path) -> None:
+    """netconvert's node radius: the larger, the further from the centre the lanes end (and the
+    gentler the turns between them)."""
+    data = load_spec("a_single_lane").model_dump()
+    stops = {}
+    for radius in (4.0, 9.0):
+        spec = IntersectionSpec.model_validate({**data, "name": f"kerb-{radius:g}", "kerb_radius_m": radius})
+        node = next(n for n in build_mod._nodes_xml(spec).iter("node") if n.get("id") == "C")
+        assert node.get("radius") == f"{radius:.3f}"
+        junction = read_junction(build_mod.build_network(spec, tmp_path / f"r{radius:g}"))
+        stops[radius] = float(np.hypot(*junction.default_approach().stop_line.mean(axis=0)))
+    assert stops[9.0] > stops[4.0] + 2.0

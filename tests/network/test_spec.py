@@ -171,3 +171,10 @@ def test_lane_links_reach_every_exit_lane_without_crossing(n_lanes: int, exits: 
     assert {k.from_lane for k in links} == set(range(n_lanes))  # every lane is used
     pairs = sorted((k.from_lane, k.to_lane) for k in links)
     assert [to for _, to in pairs] == sorted(to for _, to in pairs)  # paths never cross
+
+
+def test_kerb_radius_is_optional_and_bounded() -> None:
+    assert validate_model(four_way(), IntersectionSpec, source="ok.yaml").kerb_radius_m is None
+    assert validate_model(four_way(kerb_radius_m=6.0), IntersectionSpec, source="ok.yaml").kerb_radius_m == 6.0
+    assert problem_fields(four_way(kerb_radius_m=0.5)) == ("kerb_radius_m",)
+    assert problem_fields(four_way(kerb_radius_m=40.0)) == ("kerb_radius_m",)

@@ -57,9 +57,29 @@ def test_a_movement_without_an_internal_lane_says_so(c_three_lane) -> None:
     assert worst_offset(offsets) is None and offset_warning(offsets, "bare") is None
 
 
+def test_a_u_turn_is_measured_but_never_judged(c_three_lane) -> None:
+    """`net check --max-offset`, the warnings and the API judge only the movements that are tasks:
+    a U-turn whose internal lane runs 3 m off is listed, not marked, not the worst."""
+    approach = c_three_lane.default_approach()
+    left = next(c for c in approach.connections if c.turn == "left")
+    uturn = dataclasses.replace(left, turn="uturn", via_shape=left.via_shape + np.array([3.0, 0.0]))
+    moved = dataclasses.replace(approach, connections=tuple(
+        uturn if c is left else c for c in approach.connections))
+    junction = dataclasses.replace(c_three_lane, approaches=tuple(
+        moved if a is approach else a for a in c_three_lane.approaches))
+    offsets = internal_lane_offsets(junction)
+    measured = next(o for o in offsets if o.turn == "uturn")
+    assert measured.max_m is not None and measured.max_m > 2.5
+    assert not measured.is_task and not measured.above_warning and measured.to_json()["above_warning"] is False
+    worst = worst_offset(offsets)
+    assert worst is not None and worst.turn != "uturn" and worst.max_m < 0.05
+    assert offset_warning(offsets, "uturn") is None
+
+
 def test_netconverts_own_lanes_on_a_hand_drawn_net_are_flagged() -> None:
-    """SUMO's example cross.net.xml: netconvert's left turns run up to 3.1 m from the Bezier
-    paths (measured 3.149 m, 4si_1 -> 2o_0), its straight movements along them."""
+    """SUMO's example cross.net.xml: netconvert's left turns run up to 3.1 m from the paper's
+    Bezier paths (ρ = 0.6: 3.149 m, 4si_1 -> 2o_0), 2.76 m from the planner's (1si_2 -> 4o_0), its
+    straight movements along them."""
     offsets = internal_lane_offsets(open_junction(sumo_example(SUMO_CROSS_NET)))
     worst = worst_offset(offsets)
     assert worst is not None and worst.turn == "left" and worst.max_m > 2.5

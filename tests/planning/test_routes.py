@@ -12,6 +12,7 @@ from shapely.geometry import LineString, Point
 from crossroads.constants import PATH_SAMPLE_SPACING_M, RHO_BEZIER
 from crossroads.geometry import bezier_control_points_construction, wrap_angle
 from crossroads.planning import CandidatePath, PlanningError, plan_candidates
+from crossroads.planning.curves import MAX_CURVATURE, PAPER_RHO_MAX_CURVATURE
 from planning.factories import four_way_junction
 
 LAYOUTS = {
@@ -24,8 +25,8 @@ LAYOUTS = {
 TASKS = ("left", "straight", "right")
 
 
-def all_candidates(junction) -> list[CandidatePath]:
-    return [c for task in TASKS for c in plan_candidates(junction, task)]
+def all_candidates(junction, rho: float | None = None) -> list[CandidatePath]:
+    return [c for task in TASKS for c in plan_candidates(junction, task, rho=rho)]
 
 
 @pytest.fixture(params=list(LAYOUTS), scope="module")
@@ -73,7 +74,9 @@ def test_headings_at_the_joins_equal_the_lane_directions(junction) -> None:
 
 
 def test_control_points_and_segments(junction) -> None:
-    for c in all_candidates(junction):
+    """The paper's construction, ρ fixed at 0.6 for every candidate."""
+    for c in all_candidates(junction, rho=RHO_BEZIER):
+        assert c.rho == RHO_BEZIER and (c.x1_shift_m, c.x4_shift_m) == (0.0, 0.0)
         ent, ext = junction.lanes[c.entrance_lane], junction.lanes[c.exit_lane]
         x0, x1, x2, x3, x4, x5 = c.control_points
         np.testing.assert_allclose(x1, ent.end, atol=1e-9)
@@ -94,6 +97,22 @@ def test_control_points_and_segments(junction) -> None:
         ent_line, ext_line = LineString(ent.centerline), LineString(ext.centerline)
         assert max(ent_line.distance(Point(p)) for p in c.points[c.segment == "entrance"]) < 1e-9
         assert max(ext_line.distance(Point(p)) for p in c.points[c.segment == "exit"]) < 1e-9
+
+
+def test_chosen_rho_keeps_every_curve_within_the_steering_limit(junction) -> None:
+    """The default: ρ per candidate, the paper's where its curve bends gently (straight on), and
+    every curve within the ego's 0.16 1/m; ``max_curvature`` is the curve route's own."""
+    paper = all_candidates(junction, rho=RHO_BEZIER)
+    chosen = all_candidates(junction)
+    assert max(c.max_curvature for c in paper) > MAX_CURVATURE  # the paper's ρ bends too tight here
+    for p, c in zip(paper, chosen, strict=True):
+        curve = c.segment == "curve"
+        assert c.max_curvature == pytest.approx(np.abs(c.curvature[curve]).max())
+        assert c.max_curvature <= MAX_CURVATURE and not c.exceeds_limit, c.id
+        if p.max_curvature <= PAPER_RHO_MAX_CURVATURE:
+            assert c.rho == RHO_BEZIER and c.max_curvature == pytest.approx(p.max_curvature), c.id
+        else:
+            assert c.rho != RHO_BEZIER and c.max_curvature < p.max_curvature, c.id
 
 
 def test_candidates_stay_on_the_road(junction) -> None:
@@ -152,7 +171,8 @@ def test_to_json_round_trips() -> None:
     for c in plan_candidates(four_way_junction(n_lanes=2), "left"):
         data = json.loads(json.dumps(c.to_json()))
         assert {"id", "task", "entrance_lane", "exit_lane", "control_points", "points", "segment",
-                "v_pass", "v_stop"} <= set(data)
+                "v_pass", "v_stop", "rho", "max_curvature", "exceeds_limit"} <= set(data)
+        assert data["rho"] == pytest.approx(c.rho) and data["max_curvature"] == pytest.approx(c.max_curvature, abs=1e-4)
         assert len(data["control_points"]) == 6 and all(len(p) == 2 for p in data["control_points"])
         assert len(data["points"]) == len(c.points) and len(data["points"][0]) == 5
         assert len(data["segment"]) == len(data["v_pass"]) == len(data["v_stop"]) == len(c.points)

@@ -33,7 +33,7 @@ def test_the_fit_reproduces_the_source_and_the_file_starts_a_run(tmp_path: Path,
     unfitted = distill(source, tmp_path / "raw.pt", POOLED, episodes=10, steps=1)
     fitted = distill(source, tmp_path / "fit.pt", POOLED, episodes=10, steps=300, lr=3e-3)
     assert fitted.held_out > 0 and fitted.states > fitted.held_out
-    # measured (session 17): jerk 2.69 → 0.046 m/s³, value 6.5 % → 0.16 % of the mean value
+    # measured: jerk 2.69 → 0.046 m/s³, value 6.5 % → 0.16 % of the mean value
     assert fitted.jerk_error < 0.5 * unfitted.jerk_error
     assert fitted.value_error < 0.5 * unfitted.value_error
 
@@ -56,6 +56,7 @@ def test_the_fit_reproduces_the_source_and_the_file_starts_a_run(tmp_path: Path,
         train(tiny(tmp_path, iterations=1, run_name="flat-into-pooled", participant_encoder=8, init_from=source))
 
 
+@pytest.mark.slow
 def test_same_seed_same_networks_and_bad_requests_refused(tmp_path: Path, source: Path) -> None:
     distill(source, tmp_path / "a.pt", POOLED, episodes=10, steps=20)
     distill(source, tmp_path / "b.pt", POOLED, episodes=10, steps=20)

@@ -111,6 +111,7 @@ time.sleep(120)
 """
 
 
+@pytest.mark.slow
 def test_workers_of_a_killed_learner_exit() -> None:
     """A learner killed by a signal cannot tell its workers to stop; they notice and leave."""
     import os

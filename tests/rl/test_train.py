@@ -124,7 +124,7 @@ def test_configs_from_before_xi_positions_keep_the_step_model() -> None:
 
 
 def test_configs_from_before_the_nominal_floor_keep_the_adversary_alone() -> None:
-    """Runs of sessions 2-5 trained against the adversary's prediction alone; resumed, they still do."""
+    """Runs saved before the nominal floor trained against the adversary's prediction alone; resumed, they still do."""
     old = TrainConfig(algo="apg").to_json()
     del old["nominal_floor"]
     assert TrainConfig.from_json(old).nominal_floor is False

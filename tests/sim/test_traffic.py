@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -11,8 +12,16 @@ import pytest
 from crossroads.network import catalogue
 from crossroads.network.junction import read_junction
 from crossroads.sim.sumo import SumoSession
-from crossroads.sim.traffic import TrafficDemand, build_plan, poisson_times, write_routes
-from support import COLOGNE1_NET
+from crossroads.sim.traffic import (
+    TrafficDemand,
+    build_plan,
+    lane_split,
+    poisson_times,
+    walkable_pairs,
+    write_plan,
+    write_routes,
+)
+from support import COLOGNE1_NET, sumo_example
 
 
 @pytest.fixture(scope="module")
@@ -104,3 +113,75 @@ def test_net_without_pedestrian_infrastructure(tmp_path: Path) -> None:
         sim.step(600)
         s = sim.snapshot()
         assert len(s) > 0 and "pedestrian" not in set(s.kind)
+
+
+def test_turn_shares_split_an_approach_and_level_its_lanes(three_lane) -> None:
+    _, j = three_lane
+    south = j.approach("south_in")  # lanes: right+straight, straight, left
+    split = lane_split(south, {"left": 120.0, "straight": 840.0, "right": 240.0})
+    assert split["left"] == {4: 120.0} and split["right"] == {2: 240.0}
+    assert split["straight"] == {2: 300.0, 3: 540.0}  # both straight lanes end at 540 veh/h
+    plan = build_plan(j, TrafficDemand(turn_shares=(0.1, 0.7, 0.2)), seed=3, duration_s=36_000)
+    mine = [d for d in plan.departures if d.kind == "vehicle" and d.from_edge == "south_in"]
+    shares = {t: sum(d.turn == t for d in mine) / len(mine) for t in ("left", "straight", "right")}
+    assert shares == pytest.approx({"left": 0.1, "straight": 0.7, "right": 0.2}, abs=0.02)
+    assert len(mine) == pytest.approx(400 * 3 * 10, rel=0.05)  # per entrance lane × lanes × 10 h
+    assert all(d.turn in south.turns_of(f"south_in_{d.depart_lane}") for d in mine)
+    per_lane = build_plan(j, TrafficDemand(turn_shares=None), seed=3, duration_s=3600)
+    left_lane = [d for d in per_lane.departures if d.from_edge == "south_in" and d.depart_lane == 4
+                 and d.kind == "vehicle"]
+    assert {d.turn for d in left_lane} == {"left"} and len(left_lane) == pytest.approx(400, rel=0.2)
+    with pytest.raises(ValueError, match="turn_shares"):
+        TrafficDemand(turn_shares=(0.0, 0.0, 0.0))
+
+
+def test_cyclists_ride_straight_or_right_unless_asked_and_only_where_bicycles_may(three_lane) -> None:
+    _, j = three_lane
+    plan = build_plan(j, TrafficDemand(), seed=5, duration_s=3600)
+    bikes = [d for d in plan.departures if d.kind == "cyclist"]
+    assert bikes and {d.turn for d in bikes} == {"straight", "right"}
+    with_left = build_plan(j, TrafficDemand(cyclist_left_turns=True), seed=5, duration_s=3600)
+    assert "left" in {d.turn for d in with_left.departures if d.kind == "cyclist"}
+    # a leg none of whose lanes admits bicycles gets no cyclists, and the plan says so
+    south = j.approach("south_in")
+    car_only = replace(south, entrance_lanes=tuple(replace(ln, allowed_classes=frozenset({"passenger"}))
+                                                   for ln in south.entrance_lanes))
+    no_bike_lanes = replace(j, approaches=tuple(car_only if a is south else a for a in j.approaches),
+                            bike_lanes=tuple(b for b in j.bike_lanes if b.edge_id != "south_in"))
+    plan = build_plan(no_bike_lanes, TrafficDemand(), seed=5, duration_s=3600)
+    assert not [d for d in plan.departures if d.kind == "cyclist" and d.from_edge == "south_in"]
+    assert any("no cyclists from 'south_in'" in n for n in plan.notes)
+
+
+def test_pedestrians_walk_only_between_sidewalks_the_junction_joins(tmp_path: Path) -> None:
+    """Ingolstadt's node 335525545 (in the eclipse-sumo wheel): its one crossing joins the sidewalks
+    of three legs, a walking area of its own those of the fourth leg's two edges, and nothing joins
+    the two groups; SUMO refuses a walk between them ("No connection found"). The plan draws walks
+    within a group only, and SUMO departs every one of them."""
+    net = sumo_example("tools/game/fkk_in/ingolstadt.net.xml.gz")
+    j = read_junction(net, "335525545")
+    legs = {a.incoming_edge: a.outgoing_edge for a in j.approaches}
+    assert legs == {"29119849#1": "248012815", "116687469#0": "29119850", "gneE9": "-gneE9"}
+    reach = walkable_pairs(j, list(legs), list(legs.values()))
+    assert reach == {"29119849#1": ["29119850"], "116687469#0": ["248012815", "-gneE9"],
+                     "gneE9": ["248012815", "-gneE9"]}
+    plan = build_plan(j, TrafficDemand(vehicles_per_hour=0.0, cyclists_per_hour=0.0), seed=2, duration_s=600)
+    walks = {(d.from_edge, d.to_edge) for d in plan.departures if d.kind == "pedestrian"}
+    assert walks == {("29119849#1", "29119850"), ("116687469#0", "248012815"), ("116687469#0", "-gneE9"),
+                     ("gneE9", "248012815")}  # never back to the own leg, never across the gap
+    assert not any("pedestrians" in n for n in plan.notes)  # every leg got some
+    routes = write_plan(replace(plan, departures=plan.departures[:8]), tmp_path / "p.rou.xml")
+    with SumoSession().start(net, [routes], seed=2) as sim:  # a walk SUMO cannot route fails here
+        departed = 0
+        for _ in range(int(plan.departures[7].depart_s * 10) + 10):
+            sim.step()
+            departed += sum(pid.startswith("ped") for pid in sim.departed_last_step)
+        assert departed == 8
+    # a leg whose sidewalk reaches no other leg's gets none, and the plan names it once
+    without = replace(j, approaches=tuple(a for a in j.approaches if a.incoming_edge != "116687469#0"))
+    plan = build_plan(without, TrafficDemand(vehicles_per_hour=0.0, cyclists_per_hour=0.0), seed=2,
+                      duration_s=600)
+    assert {d.from_edge for d in plan.departures} == {"gneE9"}
+    assert [n for n in plan.notes if "pedestrians" in n] == [
+        "no pedestrians from '29119849#1': the walking areas and crossings of junction '335525545' "
+        "join its sidewalk to no other leg's"]

@@ -85,7 +85,7 @@ def test_rule_controller_passes_an_empty_intersection(net: str) -> None:
 
 
 def test_running_the_red_light(net: str) -> None:
-    red = config(net, demand=NO_TRAFFIC, signal_start=SignalStart(phase_index=2, elapsed_s=0.0),
+    red = config(net, demand=NO_TRAFFIC, signal_start=SignalStart(ego_light="red", elapsed_s=0.0),
                  ego_start=EgoStart(distance_to_stop_line_m=8.0, speed_mps=8.0))
     with World(red) as world:
         world.reset(1)
@@ -110,7 +110,7 @@ def test_collision_with_the_true_footprint(net: str) -> None:
     cfg = config(net, demand=TrafficDemand(vehicles_per_hour=1200, cyclists_per_hour=0,
                                            pedestrians_per_hour=0),
                  warmup_s=80.0,  # the natural cycle is red for the ego from 63 s: a queue forms
-                 signal_start=SignalStart(phase_index=2, elapsed_s=0.0),
+                 signal_start=SignalStart(ego_light="red", elapsed_s=0.0),
                  ego_start=EgoStart(distance_to_stop_line_m=70.0, speed_mps=10.0))
     with World(cfg) as world:
         world.reset(5)
@@ -135,18 +135,21 @@ def test_standing_still_times_out(net: str) -> None:
     assert outcome.detail == "still driving after 3 s"  # nobody ahead: nothing about a blocker
 
 
-def test_a_timeout_behind_a_standing_queue_says_how_long_it_stood() -> None:
-    """Nominal left turn, a seed whose queue ahead of the ego never moves (found with the rule
-    controller): the timeout's detail tells a blocked ego from a hesitant one."""
-    from crossroads.evaluation.scenario import load_scenario, to_world_config
-    from support import REPO_ROOT
-
-    path = REPO_ROOT / "scenarios" / "nominal" / "c_three_lane-left.yaml"
-    with World(to_world_config(load_scenario(path), path.parent)) as world:
-        obs, outcome = drive_to_outcome(world, seed=1610069009)
+def test_a_timeout_behind_a_standing_queue_says_how_long_it_stood(net: str) -> None:
+    """A queue built on purpose: heavy straight-on traffic meets the ego's red (the natural cycle
+    turns it red at 63 s; the light is set to the start of the ego's 40 s red at entry), and the
+    ego starts behind the queue. It stands the whole 15 s: the timeout's detail tells a blocked
+    ego from a hesitant one."""
+    cfg = config(net, task="straight", warmup_s=80.0, timeout_s=15.0,
+                 demand=TrafficDemand(vehicles_per_hour=1200, cyclists_per_hour=0, pedestrians_per_hour=0),
+                 signal_start=SignalStart(ego_light="red", elapsed_s=0.0),
+                 ego_start=EgoStart(distance_to_stop_line_m=70.0, speed_mps=5.0))
+    with World(cfg) as world:
+        obs, outcome = drive_to_outcome(world, seed=3)
     assert outcome.kind == "timeout", outcome
-    assert outcome.detail.startswith("still driving after 60 s; the vehicle ahead had stood ")
-    assert obs.front_vehicle_stopped_s > 30.0
+    assert outcome.detail.startswith("still driving after 15 s; the vehicle ahead had stood ")
+    assert obs.front_vehicle_stopped_s > 8.0
+    assert obs.light.light == "red" and obs.distance_to_stop_line_m > 10.0  # held by the queue
 
 
 def test_no_follower_is_left_too_close_behind_the_ego_as_it_enters() -> None:

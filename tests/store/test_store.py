@@ -76,7 +76,7 @@ def test_batch_warnings_migrate_down_and_up_keeping_every_other_row(empty_db_url
             assert conn.exec_driver_sql("SELECT id, runs FROM batches").all() == [(batch_id, 2)]
             assert conn.exec_driver_sql("SELECT batch_id, run_index FROM episodes").all() == [(batch_id, 0)]
     with open_store(empty_db_url) as store:  # a store of before the column: migrated on opening
-        assert store.revision() == head_revision() == "0002_batch_warnings"
+        assert store.revision() == head_revision()
         with store.engine.connect() as conn:
             assert compare_metadata(MigrationContext.configure(conn), Base.metadata) == []
         with store.session() as s:
@@ -231,3 +231,91 @@ def test_paired_results_match_seeds(store: Store) -> None:
             (100 + i, "passed", "collision") for i in range(3)]
         assert crud.delete_batch(session=s, batch_id=b)
         assert crud.batch_results(session=s, batch_id=b) == []
+
+
+def test_cancel_requests_migrate_down_and_up_keeping_every_other_row(empty_db_url: str) -> None:
+    """0003 adds batches.cancel_requested_at; its downgrade drops only that column (the batch and
+    its episodes stay), and opening the store again brings it back, empty."""
+    with open_store(empty_db_url) as store:
+        batch_id = make_batch(store, runs=2, seed=31)
+        with store.session() as s:
+            crud.record_episode(session=s, batch_id=batch_id, run_index=0, seed=1, result=result())
+            crud.request_cancel(session=s, batch_id=batch_id)
+        _downgrade(store, "0002_batch_warnings")
+        assert store.revision() == "0002_batch_warnings"
+        assert "cancel_requested_at" not in {c["name"] for c in inspect(store.engine).get_columns("batches")}
+        with store.engine.connect() as conn:
+            assert conn.exec_driver_sql("SELECT batch_id, run_index FROM episodes").all() == [(batch_id, 0)]
+    with open_store(empty_db_url) as store:
+        assert store.revision() == head_revision()
+        with store.session() as s:
+            batch = crud.get_batch(session=s, batch_id=batch_id)
+            assert batch is not None and batch.cancel_requested_at is None and batch.status == "queued"
+
+
+def test_a_cancel_request_is_stored_and_ends_the_batch_at_restart(store: Store) -> None:
+    """request_cancel writes at once (the first time counts); a restart's end_requested_cancels
+    marks the unfinished ones cancelled and unfinished_batches no longer offers them."""
+    asked, running, other = (make_batch(store, runs=1, seed=s) for s in (41, 42, 43))
+    with store.session() as s:
+        crud.set_batch_status(session=s, batch_id=running, status="running")
+        first = crud.request_cancel(session=s, batch_id=asked).cancel_requested_at
+        assert first is not None
+    with store.session() as s:  # read back (SQLite keeps no time zone: compare the naive times)
+        again = crud.request_cancel(session=s, batch_id=asked).cancel_requested_at
+        assert again.replace(tzinfo=None) == first.replace(tzinfo=None)
+        crud.request_cancel(session=s, batch_id=running)
+        assert crud.request_cancel(session=s, batch_id=10**6) is None
+    mine = {asked, running, other}  # (the PostgreSQL database is shared by the session's tests)
+    with store.session() as s:
+        assert [b.id for b in crud.unfinished_batches(session=s) if b.id in mine] == [other]
+        assert mine & set(crud.end_requested_cancels(session=s)) == {asked, running}
+        assert not mine & set(crud.end_requested_cancels(session=s))
+    with store.session() as s:
+        for batch_id in (asked, running):
+            batch = crud.get_batch(session=s, batch_id=batch_id)
+            assert batch.status == "cancelled" and batch.finished_at is not None
+        assert crud.get_batch(session=s, batch_id=other).status == "queued"
+
+
+@pytest.mark.parametrize("big", [2**31, 2**63 - 1, 2**63, 10**30, 0, -1])
+def test_ids_beyond_the_columns_find_nothing(store: Store, big: int) -> None:
+    """An id the INTEGER columns cannot hold (32-bit on PostgreSQL, 64-bit on SQLite) never reaches
+    the driver: it finds nothing instead of raising."""
+    batch_id = make_batch(store, runs=1, seed=51)
+    with store.session() as s:
+        assert crud.get_batch(session=s, batch_id=big) is None
+        assert crud.get_scenario(session=s, scenario_id=big) is None
+        assert crud.get_policy(session=s, policy_id=big) is None
+        assert crud.get_episode(session=s, batch_id=big, run_index=0) is None
+        assert crud.get_episode(session=s, batch_id=batch_id, run_index=big if big else -1) is None
+        assert crud.batch_results(session=s, batch_id=big) == []
+        assert crud.count_results(session=s, batch_id=big) == 0
+        assert crud.list_batches(session=s, scenario_id=big) == []
+        assert crud.count_batches(session=s, scenario_id=big) == 0
+        assert crud.delete_batch(session=s, batch_id=big) is False
+        assert crud.request_cancel(session=s, batch_id=big) is None
+
+
+def test_batches_are_bounded_in_runs(store: Store) -> None:
+    with store.session() as s:
+        scenario = crud.get_or_create_scenario(session=s, spec=make_spec(61))
+        policy = crud.get_or_create_policy(session=s, ref="rule")
+        for runs in (0, 10_001, 10**12):
+            with pytest.raises(ValueError, match="runs must be in 1..10000"):
+                crud.create_batch(session=s, scenario=scenario, policy=policy, runs=runs)
+        assert crud.create_batch(session=s, scenario=scenario, policy=policy, runs=10_000).runs == 10_000
+
+
+def test_scenarios_are_listed_in_pages(store: Store) -> None:
+    with store.session() as s:
+        ids = [crud.get_or_create_scenario(session=s, spec=make_spec(70 + i)).id for i in range(3)]
+        total = crud.count_scenarios(session=s)
+        assert total >= 3
+        listed = [r.id for r in crud.list_scenarios(session=s, limit=total)]
+        assert listed == sorted(listed) and set(ids) <= set(listed)
+        assert [r.id for r in crud.list_scenarios(session=s, limit=2, offset=1)] == listed[1:3]
+        batch = crud.create_batch(session=s, scenario=crud.get_scenario(session=s, scenario_id=ids[0]),
+                                  policy=crud.get_or_create_policy(session=s, ref="rule"), runs=1)
+        assert crud.batch_counts(session=s, scenario_ids=ids) == {ids[0]: 1}
+        assert crud.count_batches(session=s, scenario_id=ids[0]) == 1 and batch.id

@@ -20,7 +20,8 @@ from crossroads.evaluation.scenario import load_scenario, to_world_config  # noq
 from crossroads.evaluation.trace import Trace, TraceRecorder  # noqa: E402
 from crossroads.idc.rule_based import RuleBasedController  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
-from crossroads.viz.playback import Playback, PlaybackServer, fig7_series, junction_of  # noqa: E402
+from crossroads.viz.playback import (  # noqa: E402
+    MARKER_CLASS, Playback, PlaybackServer, fig7_series, junction_of, y_range)
 from crossroads.viz.viewer import (  # noqa: E402
     ABNORMAL, KIND_COLOURS, LiveRecorder, Viewer, frame_of_observation, node_name)
 from support import REPO_ROOT  # noqa: E402
@@ -175,6 +176,39 @@ def test_playback_advances_scrubs_and_steps(server: viser.ViserServer, trace: Tr
         series = fig7_series(trace)
         assert set(series) == {"t", "speed", "steering", "acceleration", "speed_mode"}
         assert len(player.plots["speed"].data[1]) == len(trace)
+    finally:
+        player.close()
+
+
+def test_y_range_is_finite_padded_and_ignores_nan() -> None:
+    lo, hi = y_range(np.array([np.nan, 2.0, 4.0, np.nan]))
+    assert lo < 2.0 and hi > 4.0 and np.isfinite([lo, hi]).all()
+    assert y_range(np.array([5.0, 5.0])) == pytest.approx((4.5 - 0.08, 5.5 + 0.08))  # a flat line, centred
+    lo, hi = y_range(np.array([np.nan, np.nan]))
+    assert lo < 0.0 < hi
+
+
+def test_playback_charts_keep_a_finite_scale_on_every_frame(server: viser.ViserServer, trace: Trace) -> None:
+    """uPlot reads NaN as a value: a y scale auto-ranged over the NaN-padded "now" marker went NaN
+    and the charts blank on every frame but the first. The marker stays out of the ranging and the
+    y scales are fixed to the series' finite extent."""
+    player = Playback(server, trace)
+    try:
+        series = fig7_series(trace)
+        for frame in (0, 7, len(trace) - 1):
+            player.seek(frame)
+            for key, handle in player.plots.items():
+                t, values, marker = handle.data
+                assert np.array_equal(t, series["t"])
+                assert np.array_equal(values, series[key], equal_nan=True)
+                assert np.flatnonzero(~np.isnan(marker)).tolist() in ([frame], [])  # [] where the value is NaN
+                assert handle.series[2]["auto"] is False and handle.series[2]["class"] == MARKER_CLASS
+                lo, hi = handle.scales["y"]["range"]
+                assert handle.scales["y"]["auto"] is False and np.isfinite([lo, hi]).all()
+                finite = values[np.isfinite(values)]
+                assert lo <= finite.min() and finite.max() <= hi
+        lo, hi = player.plots["speed_mode"].scales["y"]["range"]
+        assert lo < 0.0 and hi > 1.0  # both modes on the axis
     finally:
         player.close()
 

@@ -13,6 +13,11 @@ A batch that cannot even start (its network does not build, its policy does not 
 ``failed`` with the reason, so no batch is left ``queued`` forever by this process. On shutdown
 the running batches are stopped and put back to ``queued``: :meth:`JobRegistry.resume_unfinished`
 at the next start goes on with them (the runner skips every run already recorded).
+
+A cancel is recorded in the store before anything else (``batches.cancel_requested_at``, written
+by the route): a batch asked to cancel never starts, is never put back in the queue and is never
+resumed, whichever state the request found it in. Each episode has a wall-clock limit
+(``episode_wall_limit_s``): one that runs longer is stopped and recorded as an error.
 """
 
 from __future__ import annotations
@@ -25,7 +30,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, Protocol
 
-from crossroads.evaluation.batch import BatchResult, BatchRunner, Progress, make_executor
+from crossroads.evaluation.batch import BatchResult, BatchRunner, Progress
+from crossroads.evaluation.executors import Executor, ProcessExecutor, RayExecutor
 from crossroads.store import Store, crud
 from crossroads.store.crud import FINISHED_STATUSES
 
@@ -73,13 +79,17 @@ class JobRegistry:
     shutdown. Thread-safe; every method returns at once except :meth:`shutdown`."""
 
     def __init__(self, store: Store, *, data_dir: str | Path, ray_address: str | None = None,
-                 max_running: int = 2, runner_factory: RunnerFactory | None = None) -> None:
+                 max_running: int = 2, runner_factory: RunnerFactory | None = None,
+                 episode_wall_limit_s: float | None = None) -> None:
         if max_running < 1:
             raise ValueError(f"max_running must be >= 1, got {max_running}")
+        if episode_wall_limit_s is not None and not episode_wall_limit_s > 0:
+            raise ValueError(f"episode_wall_limit_s must be > 0, got {episode_wall_limit_s}")
         self.store = store
         self.data_dir = Path(data_dir)
         self.ray_address = ray_address
         self.max_running = max_running
+        self.episode_wall_limit_s = episode_wall_limit_s
         self._make_runner = runner_factory or self._batch_runner
         self._jobs: dict[int, Job] = {}
         self._active: set[int] = set()  # started and not yet ended (decides when the queue moves)
@@ -88,7 +98,11 @@ class JobRegistry:
         self._lock = threading.Lock()
 
     def _batch_runner(self, batch_id: int, workers: int | None) -> Runner:
-        executor = make_executor(workers=workers, ray_address=self.ray_address)
+        executor: Executor
+        if self.ray_address:
+            executor = RayExecutor(self.ray_address, workers, wall_limit_s=self.episode_wall_limit_s)
+        else:
+            executor = ProcessExecutor(workers, wall_limit_s=self.episode_wall_limit_s)
         return BatchRunner(self.store, batch_id, data_dir=self.data_dir, executor=executor)
 
     # --- submitting ------------------------------------------------------------------------------
@@ -133,10 +147,16 @@ class JobRegistry:
 
     def _still_wanted(self, batch_id: int) -> bool:
         """False when the stored batch has ended meanwhile (e.g. cancelled by another process
-        while it waited): running it would overwrite that."""
+        while it waited): running it would overwrite that. A batch asked to cancel is marked
+        ``cancelled`` here, never started."""
         with self.store.session() as session:
             batch = crud.get_batch(session=session, batch_id=batch_id)
-            return batch is not None and batch.status not in FINISHED_STATUSES
+            if batch is None or batch.status in FINISHED_STATUSES:
+                return False
+            if batch.cancel_requested_at is not None:
+                crud.set_batch_status(session=session, batch_id=batch_id, status="cancelled")
+                return False
+            return True
 
     def _ended(self, batch_id: int) -> None:
         """A job's thread is about to end: free its slot and start the next queued batches."""
@@ -159,9 +179,14 @@ class JobRegistry:
     def resume_unfinished(self) -> list[int]:
         """Submit every stored batch still ``queued`` or ``running`` (left by a process that
         stopped), oldest first; the runner skips the runs already recorded, so none is run or
-        counted twice. Returns their ids."""
+        counted twice. A batch a user asked to cancel is marked ``cancelled`` instead. Returns the
+        ids of the batches submitted."""
         with self.store.session() as session:
+            ended = crud.end_requested_cancels(session=session)
             rows = [(b.id, b.workers) for b in crud.unfinished_batches(session=session)]
+        if ended:
+            log.info("cancelled %d batch(es) asked to cancel before the restart: %s", len(ended),
+                     ", ".join(map(str, ended)))
         for batch_id, workers in rows:
             self.submit(batch_id, workers=workers)
         if rows:
@@ -237,7 +262,7 @@ class JobRegistry:
         try:
             with self.store.session() as session:
                 batch = crud.get_batch(session=session, batch_id=batch_id)
-                if batch is not None and batch.status == "cancelled":
+                if batch is not None and batch.status == "cancelled" and batch.cancel_requested_at is None:
                     crud.set_batch_status(session=session, batch_id=batch_id, status="queued")
         except Exception:  # noqa: BLE001 - the store went first; the batch stays as it is
             log.exception("cannot put batch %s back in the queue", batch_id)

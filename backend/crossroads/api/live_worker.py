@@ -75,13 +75,13 @@ def main(conn: Any, stop: Any, go: Any, job: dict[str, Any]) -> None:
 
 def _run(conn: Any, stop: Any, go: Any, job: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     from crossroads.evaluation.episode import run_episode
-    from crossroads.evaluation.policies import load_controller
+    from crossroads.evaluation.policies import load_controller, parse_policy
     from crossroads.evaluation.scenario import to_world_config, validate_scenario
     from crossroads.sim.world import World
 
     spec = validate_scenario(job["spec"], source="live run", check_references=False)
     config = to_world_config(spec, base_dir=job["base_dir"])
-    controller = load_controller(job["policy"])
+    controller = load_controller(parse_policy(job["policy"]))
     with World(config) as world:
         conn.send(("ready", {"net": str(config.net_file), "junction": world.junction.id,
                              "candidates": [c.to_json() for c in world.candidates]}))

@@ -4,6 +4,10 @@ The lifespan opens (and migrates) the results store named by the settings, start
 job registry (at most ``max_concurrent_batches`` running, the rest queued) and resumes the
 batches a previous process left queued or running (``resume_batches``); on shutdown it stops the
 live runs and the running batches (left ``queued`` for the next start) and closes the store.
+
+In front of every route: :class:`~crossroads.api.guard.RequestGuard` (the Host, the access token,
+the Origin of state-changing requests) and :class:`~crossroads.api.body_limit.BodyLimit` (the
+request body limit); errors become answers in :mod:`crossroads.api.errors`.
 """
 
 from __future__ import annotations
@@ -11,11 +15,13 @@ from __future__ import annotations
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
-from fastapi import FastAPI, Request
-from fastapi.responses import JSONResponse
+from fastapi import FastAPI
 
 from crossroads import __version__
+from crossroads.api.body_limit import BodyLimit, own_body_routes
 from crossroads.api.deps import ApiOptions
+from crossroads.api.errors import install_error_handlers
+from crossroads.api.guard import RequestGuard
 from crossroads.api.jobs import JobRegistry
 from crossroads.api.live import LiveRuns
 from crossroads.api.routes import (
@@ -26,17 +32,15 @@ from crossroads.api.routes import (
     live,
     playback,
     policies,
+    policy_uploads,
     reports,
     scenarios,
+    searches,
     uploads,
 )
-from crossroads.api.static import mount_frontend
-from crossroads.evaluation.policies import PolicyError
-from crossroads.network.junction import JunctionError
-from crossroads.network.resolve import NetworkNotFoundError
+from crossroads.api.static import mount_docs, mount_frontend
 from crossroads.settings import Settings
 from crossroads.store import open_store
-from crossroads.validation import SpecError
 
 SHUTDOWN_WAIT_S = 10.0  # [s] how long shutdown waits for cancelled batches to stop
 
@@ -47,7 +51,8 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     settings.data_dir.mkdir(parents=True, exist_ok=True)
     store = open_store(settings.database_url)
     jobs = JobRegistry(store, data_dir=settings.data_dir, ray_address=settings.ray_address,
-                       max_running=settings.max_concurrent_batches)
+                       max_running=settings.max_concurrent_batches,
+                       episode_wall_limit_s=settings.episode_wall_limit_s)
     live_runs = LiveRuns(host=settings.host)
     app.state.store, app.state.jobs, app.state.live = store, jobs, live_runs
     if settings.resume_batches:
@@ -56,6 +61,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         yield
     finally:
         live_runs.shutdown()
+        searches.stop_all(app, SHUTDOWN_WAIT_S)  # cancelled: they resume from the store
         jobs.shutdown(SHUTDOWN_WAIT_S)
         app.state.store = app.state.jobs = app.state.live = None
         store.close()
@@ -63,11 +69,16 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
 
 def create_app(settings: Settings | None = None, options: ApiOptions | None = None) -> FastAPI:
     settings = settings or Settings()
+    if settings.public and settings.token is None:
+        raise ValueError(f"the API would listen on {settings.host}, beyond this machine, without an access "
+                         "token: set one (CROSSROADS_TOKEN; `crossroads serve` generates one)")
     app = FastAPI(
         title="Crossroads",
         version=__version__,
         summary="Scenario studio and evaluator for driving policies at signalized intersections",
         lifespan=lifespan,
+        docs_url=None,  # /docs and /redoc: mount_docs, their scripts served locally
+        redoc_url=None,
     )
     app.state.settings = settings
     app.state.options = options or ApiOptions()
@@ -77,22 +88,18 @@ def create_app(settings: Settings | None = None, options: ApiOptions | None = No
     app.include_router(intersections.router, prefix="/api")
     app.include_router(scenarios.router, prefix="/api")
     app.include_router(policies.router, prefix="/api")
+    app.include_router(policy_uploads.router, prefix="/api")  # ONNX policies: POST /policies/upload, ...
     app.include_router(batches.router, prefix="/api")
     app.include_router(episodes.router, prefix="/api")
     app.include_router(reports.router, prefix="/api")
     app.include_router(playback.router, prefix="/api")
     app.include_router(live.router, prefix="/api")
+    app.include_router(searches.router, prefix="/api")
 
-    # Domain errors become clear HTTP answers in one place, not in every route.
-    @app.exception_handler(NetworkNotFoundError)
-    async def _not_found(_: Request, exc: NetworkNotFoundError) -> JSONResponse:
-        return JSONResponse(status_code=404, content={"detail": str(exc)})
-
-    @app.exception_handler(SpecError)
-    @app.exception_handler(JunctionError)
-    @app.exception_handler(PolicyError)
-    async def _unprocessable(_: Request, exc: Exception) -> JSONResponse:
-        return JSONResponse(status_code=422, content={"detail": str(exc)})
-
+    install_error_handlers(app)
+    mount_docs(app)
     mount_frontend(app)  # last: its catch-all route must not shadow the API
+    # the last added runs first: the guard refuses a request before its body is read
+    app.add_middleware(BodyLimit, max_bytes=settings.json_body_max_bytes, exempt=own_body_routes(app.routes))
+    app.add_middleware(RequestGuard, settings=settings)
     return app

@@ -11,7 +11,12 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-_IN = ConfigDict(extra="forbid", strict=True)  # what a client sends: no unknown keys, no coercion
+from crossroads.evaluation.scenario import MAX_RUNS
+from crossroads.settings import MAX_BATCH_WORKERS
+from crossroads.store.tables import MAX_ROW_ID
+
+# What a client sends: no unknown keys, no coercion, no NaN or infinities.
+_IN = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
 
 # --- scenarios ------------------------------------------------------------------------------------
@@ -44,11 +49,13 @@ class ScenarioPublic(BaseModel):
 
 class PolicyPublic(BaseModel):
     name: str = Field(description="what POST /batches takes as `policy`")
-    kind: Literal["builtin", "checkpoint"]
-    file: str | None = Field(None, description="checkpoint file, relative to the models directory")
+    kind: Literal["builtin", "checkpoint", "onnx"]
+    file: str | None = Field(None, description="checkpoint file, relative to the models directory (an uploaded "
+                                               "ONNX policy's: to the uploads)")
     shield: bool = Field(False, description="its actions pass the safety shield (idc.shield), not the paper's")
     size_bytes: int | None = None
     card: dict[str, Any] | None = Field(None, description="the model card, when one lies beside it")
+    sha256: str | None = Field(None, description="sha256 of an uploaded policy's file, hex")
 
 
 # --- batches --------------------------------------------------------------------------------------
@@ -60,13 +67,15 @@ class BatchCreate(BaseModel):
 
     model_config = _IN
 
-    scenario_id: int | None = Field(None, ge=1, description="id of a stored scenario")
+    scenario_id: int | None = Field(None, ge=1, le=MAX_ROW_ID, description="id of a stored scenario")
     scenario: dict[str, Any] | None = Field(
         None, description="a scenario given inline (stored like POST /scenarios)")
     policy: str = Field("rule", min_length=1, max_length=200,
-                        description="'rule' or the name of a checkpoint listed by GET /policies")
-    runs: int | None = Field(None, ge=1, le=100_000, description="episodes; default: the scenario's runs")
-    workers: int | None = Field(None, ge=1, le=256, description="worker processes; default: one per CPU")
+                        description="a policy listed by GET /policies")
+    runs: int | None = Field(None, ge=1, le=MAX_RUNS, description="episodes; default: the scenario's runs")
+    workers: int | None = Field(
+        None, ge=1, le=MAX_BATCH_WORKERS,
+        description="worker processes; default: one per CPU; at most the server's max_batch_workers")
     traces: Literal["all", "failed", "none"] = Field(
         "failed", description="which episodes keep their trace ('failed': every outcome but passed)")
 
@@ -107,6 +116,8 @@ class BatchSummary(BaseModel):
     travel_time_mean_s: float | None
     travel_time_std_s: float | None
     outcome_counts: dict[str, int]
+    blocked: int = Field(0, description="timeouts behind a participant that barred every candidate "
+                         "path the whole episode (the world's failure; still in the judged runs)")
 
 
 class BatchPublic(BaseModel):
@@ -127,6 +138,8 @@ class BatchPublic(BaseModel):
     queue_position: int | None = Field(
         None, description="while the batch waits for a free slot (settings: max_concurrent_batches): "
         "1 = next to start; null otherwise")
+    cancel_requested: bool = Field(
+        False, description="a cancel was asked for (the batch ends `cancelled` and is never resumed)")
     warnings: list[str] = Field(
         default_factory=list,
         description="what the batch's network gave reason to warn about when the batch was created "
@@ -168,10 +181,10 @@ class LiveCreate(BaseModel):
 
     model_config = _IN
 
-    scenario_id: int | None = Field(None, ge=1, description="id of a stored scenario")
+    scenario_id: int | None = Field(None, ge=1, le=MAX_ROW_ID, description="id of a stored scenario")
     scenario: dict[str, Any] | None = Field(None, description="a scenario given inline (not stored)")
     policy: str = Field("rule", min_length=1, max_length=200,
-                        description="'rule' or the name of a checkpoint listed by GET /policies")
+                        description="a policy listed by GET /policies")
     seed: int | None = Field(None, ge=0, le=MAX_SUMO_SEED,
                              description="the episode's seed; default: the seed of run 0 of the "
                              "scenario's batches (so the live run replays it)")

@@ -1,6 +1,7 @@
-"""The studio page: frontend/dist (built by ``npm run build``) served at /.
+"""The studio page: frontend/dist (built by ``npm run build``) served at /, and the API docs
+pages (/docs, /redoc) with their scripts from that build (dist/vendor).
 
-Any path outside /api, /docs and /openapi.json that is not a file of the build answers with
+Any path outside /api, /docs, /redoc and /openapi.json that is not a file of the build answers with
 index.html, so the page's own links keep working on reload. Without a build the page says how
 to make one.
 """
@@ -11,6 +12,7 @@ import os
 from pathlib import Path
 
 from fastapi import FastAPI, HTTPException
+from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
 from fastapi.responses import FileResponse, HTMLResponse, Response
 
 REPO_DIST = Path(__file__).resolve().parents[3] / "frontend" / "dist"  # <repo>/backend/crossroads/api
@@ -29,6 +31,30 @@ MISSING_BUILD = """<!doctype html>
 def dist_dir() -> Path:
     configured = os.environ.get("CROSSROADS_FRONTEND_DIST")
     return Path(configured) if configured else REPO_DIST
+
+
+VENDOR = "/vendor"  # the doc pages' scripts, copied into the build by frontend/vite.config.js
+
+
+def mount_docs(app: FastAPI) -> None:
+    """/docs (Swagger UI) and /redoc (ReDoc), their scripts served from the studio's build rather
+    than a CDN, so they work offline. Create the app with ``docs_url=None, redoc_url=None``."""
+    title = f"{app.title} API"
+
+    @app.get("/docs", include_in_schema=False)
+    def swagger_ui() -> HTMLResponse:
+        return get_swagger_ui_html(
+            openapi_url=app.openapi_url or "/openapi.json", title=title,
+            swagger_js_url=f"{VENDOR}/swagger-ui/swagger-ui-bundle.js",
+            swagger_css_url=f"{VENDOR}/swagger-ui/swagger-ui.css",
+            swagger_favicon_url=f"{VENDOR}/swagger-ui/favicon-32x32.png")
+
+    @app.get("/redoc", include_in_schema=False)
+    def redoc() -> HTMLResponse:
+        return get_redoc_html(openapi_url=app.openapi_url or "/openapi.json", title=title,
+                              redoc_js_url=f"{VENDOR}/redoc/redoc.standalone.js",
+                              redoc_favicon_url=f"{VENDOR}/swagger-ui/favicon-32x32.png",
+                              with_google_fonts=False)
 
 
 def mount_frontend(app: FastAPI, dist: Path | None = None) -> None:

@@ -36,7 +36,7 @@ from crossroads.evaluation.executors import (
     RayExecutor,
     WorkerJob,
 )
-from crossroads.evaluation.metrics import wilson_interval
+from crossroads.evaluation.metrics import is_blocked, wilson_interval
 from crossroads.store import Store, crud
 from crossroads.store.tables import EPISODE_OUTCOMES
 
@@ -92,6 +92,7 @@ class BatchResult:
     travel_time_std_s: float | None
     travel_times_s: list[float] = field(repr=False, default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    blocked: int = 0  # timeouts blocked by the world (metrics.is_blocked); in the judged runs
 
     @property
     def judged(self) -> int:
@@ -115,6 +116,8 @@ def summarize_batch(store: Store, batch_id: int) -> BatchResult:
         travel = [e.travel_time_s for e in crud.batch_results(session=session, batch_id=batch_id,
                                                                outcomes=["passed"])
                   if e.travel_time_s is not None]
+        blocked = sum(1 for e in crud.batch_results(session=session, batch_id=batch_id,
+                                                    outcomes=["timeout"]) if is_blocked(e))
         recorded = sum(counts.values())
         errors = counts.get("error", 0)
         passed = counts.get("passed", 0)
@@ -129,7 +132,7 @@ def summarize_batch(store: Store, batch_id: int) -> BatchResult:
             pass_rate=passed / judged if judged else None, wilson_low=low, wilson_high=high,
             outcome_counts={o: counts.get(o, 0) for o in EPISODE_OUTCOMES},
             travel_time_mean_s=mean, travel_time_std_s=std, travel_times_s=travel,
-            warnings=list(batch.warnings or []))
+            warnings=list(batch.warnings or []), blocked=blocked)
 
 
 def create_batch_for(store: Store, *, spec: Any, policy: str, runs: int | None = None,
@@ -240,7 +243,7 @@ class BatchRunner:
 
     def _plan(self) -> _Plan:
         """Check the batch can run here: the worker job, the runs left, the counts so far."""
-        from crossroads.evaluation.policies import load_controller
+        from crossroads.evaluation.policies import load_controller, parse_policy
         from crossroads.evaluation.scenario import run_seeds, to_world_config
 
         with self.store.session() as session:
@@ -249,7 +252,7 @@ class BatchRunner:
                 raise BatchError(f"no batch {self.batch_id} in {self.store.url}")
             spec = crud.scenario_spec(scenario=batch.scenario)
             policy = batch.policy
-            if policy.kind == "checkpoint":
+            if policy.kind != "builtin":  # a file (checkpoint, ONNX) or a plugin's source
                 now = crud.policy_identity(policy.ref).file_hash
                 if now != policy.file_hash:
                     raise BatchError(f"policy file {policy.ref} changed since batch {batch.id} "
@@ -261,7 +264,7 @@ class BatchRunner:
         # Fail here, once, on what would fail every episode: a network that cannot be built (also
         # warms the build cache before workers race for it) or a policy that cannot be loaded.
         to_world_config(spec, base_dir=base_dir)
-        load_controller(policy.ref)
+        load_controller(parse_policy(policy.ref))
         seeds = run_seeds(spec.model_copy(update={"seed": base_seed}), runs)
         tasks = [EpisodeTask(i, seeds[i]) for i in range(runs) if i not in done]
         trace_dir = None

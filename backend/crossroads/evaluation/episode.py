@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from crossroads.evaluation.sumo_driver import SumoDriverPolicy
+from crossroads.evaluation.near_miss import NearMissTracker
 from crossroads.evaluation.trace import TraceRecorder
 from crossroads.idc.controller import Controller
 from crossroads.sim.world import Observation, Outcome, World
@@ -30,6 +32,12 @@ class EpisodeResult:
     detail: str = ""
     collided_with: str | None = None  # vehicle | cyclist | pedestrian
     events: list[dict[str, Any]] = field(default_factory=list)  # mode, path and shield switches, ...
+    # a timeout behind a participant that barred every path the whole episode (sim/blocking.py)
+    blocked_by: dict[str, Any] | None = None
+    # how close it came to failing (evaluation/near_miss.py); None: not measured or nothing near
+    min_gap_m: float | None = None  # [m] smallest footprint gap to one closing in (<= 0: touching)
+    min_ttc_s: float | None = None  # [s] shortest time to collision with one ahead
+    red_stop_margin_m: float | None = None  # [m] driving on red: distance to the line − braking distance
 
     @property
     def passed(self) -> bool:
@@ -56,14 +64,18 @@ def run_episode(
 ) -> EpisodeResult:
     """Reset ``world`` with ``seed`` and let ``controller`` drive until an outcome.
 
+    A :class:`SumoDriverPolicy` hands the ego to SUMO's own driver instead (policy ``sumo``).
     With a ``recorder``, every step (and the final state) goes into its trace.
     """
-    observation = world.reset(seed)
+    sumo_drives = isinstance(controller, SumoDriverPolicy)
+    observation = world.reset(seed, sumo_driver=controller.driver if sumo_drives else None)
     controller.reset(world.candidates)
     if recorder is not None:
         recorder.start(world, seed, scenario=scenario_name)
     events: list[dict[str, Any]] = []
     min_distance = _closest_distance(observation)
+    near_miss = NearMissTracker()
+    near_miss.update(observation)
     last_mode = last_path = None
     last_shield = False  # a shielded run starts with the shield off: its first event is it braking
     outcome: Outcome | None = None
@@ -84,14 +96,20 @@ def run_episode(
             last_shield = decision.shield_braking
         if recorder is not None:
             recorder.record(observation, decision)
-        observation, outcome = world.step(decision.action)
+        observation, outcome = world.step(None if sumo_drives else decision.action)
         steps += 1
         min_distance = min(min_distance, _closest_distance(observation))
-    if recorder is not None:
-        recorder.finish(observation, outcome)
+        near_miss.update(observation)
     crossed = world.stop_line_crossed_s
     travel = outcome.time_s - crossed if outcome.kind == "passed" and crossed is not None else None
+    events.extend(world.events)  # the world's own: gridlock removals
+    events.sort(key=lambda e: e["t"])  # stable: a step's decisions before the world's events
+    if outcome.blocked_by is not None:  # kept with the events, so the results store has it too
+        events.append({"t": round(outcome.time_s, 2), "event": "blocked_by",
+                       "value": outcome.blocked_by.to_json()})
     events.append({"t": round(outcome.time_s, 2), "event": "outcome", "value": outcome.kind})
+    if recorder is not None:  # the trace keeps the episode's events for the playback
+        recorder.finish(observation, outcome, events=events)
     return EpisodeResult(
         seed=seed,
         outcome=outcome.kind,
@@ -102,4 +120,6 @@ def run_episode(
         detail=outcome.detail,
         collided_with=outcome.other_kind,
         events=events,
+        blocked_by=None if outcome.blocked_by is None else outcome.blocked_by.to_json(),
+        **near_miss.figures(),
     )

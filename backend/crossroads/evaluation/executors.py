@@ -8,7 +8,10 @@ same worker gives every episode the same). A worker turns every Python exception
 an episode into an error report, and the executor turns a worker that dies (killed, segfault)
 into an error report for the run it held and starts a replacement; so every task given to an
 executor comes back as exactly one :class:`EpisodeReport`, unless the batch is cancelled (the
-runs in flight are then dropped, not reported, and run again on resume).
+runs in flight are then dropped, not reported, and run again on resume). With ``wall_limit_s``, an
+episode still running after that much wall-clock time has its worker killed and comes back as an
+error report whose message starts with ``wall-clock limit`` (a stuck or endless episode must not
+hold a worker for ever).
 
 Executors hand reports to a callback in the calling thread, one at a time, as they arrive.
 """
@@ -82,7 +85,7 @@ class WorkerJob:
 
     spec: dict[str, Any]  # ScenarioSpec as JSON (model_dump(mode="json"))
     base_dir: str | None  # relative net paths of the spec count from here
-    policy_ref: str  # "rule" or a checkpoint path
+    policy_ref: str  # a policy reference as crossroads.evaluation.policies.parse_policy reads it
     traces: Literal["all", "failed", "none"] = "failed"
     trace_dir: str | None = None  # <data_dir>/traces/<batch_id>; required unless traces == "none"
     # Test hook: run index → a fault injected mid-episode ("raise": an exception in the
@@ -121,7 +124,7 @@ class _Sabotaged:
 # built the World but never started SUMO. Why: SUMO's simulation depends on where its objects land in
 # memory, so an episode run after others in the same process could end differently from the same
 # seed run first (seed 2090914255 of the nominal left turn: timeout first, passed after three other
-# episodes or after 5 000 throw-away allocations; docs/measurements/determinism.md). A local worker
+# episodes or after 5 000 throw-away allocations; docs/tried/world.md). A local worker
 # does nothing between its forks but wait for the child (the child reads the task and sends the
 # report itself), so every child starts from the same memory, whatever ran before it and whichever
 # worker gets the seed. Off where there is no fork (Windows), or with CROSSROADS_FORK_EPISODES=0
@@ -195,7 +198,7 @@ class EpisodeWorker:
         return _died(task, f"episode process {pid} of {self.name}", _exit_reason(code))
 
     def _ready(self) -> tuple[Any, Any]:
-        from crossroads.evaluation.policies import load_controller
+        from crossroads.evaluation.policies import load_controller, parse_policy
         from crossroads.evaluation.scenario import to_world_config, validate_scenario
         from crossroads.sim.world import World
 
@@ -203,7 +206,7 @@ class EpisodeWorker:
             self._spec = validate_scenario(self.job.spec, source="batch scenario",
                                            check_references=False)
         if self._controller is None:
-            self._controller = load_controller(self.job.policy_ref)
+            self._controller = load_controller(parse_policy(self.job.policy_ref))
             if "torch" in sys.modules:  # a trained policy: one worker, one core (K workers on K cores);
                 sys.modules["torch"].set_num_threads(1)  # torch's default would oversubscribe them
         if self._world is None:
@@ -301,6 +304,14 @@ def _died(task: EpisodeTask, who: str, why: str) -> EpisodeReport:
     return EpisodeReport(task.run_index, task.seed, None, f"WorkerDied: {who} {why}", 0.0, None, who)
 
 
+WALL_LIMIT_ERROR = "wall-clock limit"  # how an episode stopped for running too long is recorded
+
+
+def _overran(task: EpisodeTask, who: str, limit_s: float) -> EpisodeReport:
+    message = f"{WALL_LIMIT_ERROR}: the episode ran longer than {limit_s:g} s and was stopped ({who})"
+    return EpisodeReport(task.run_index, task.seed, None, message, round(limit_s, 4), None, who)
+
+
 # --- local processes ----------------------------------------------------------------------------
 
 
@@ -363,6 +374,7 @@ class _Slot:
         self.process.start()
         child.close()
         self.task: EpisodeTask | None = None
+        self.started = 0.0  # [s] time.monotonic() when the task was sent
 
     @property
     def who(self) -> str:
@@ -394,10 +406,12 @@ def _exit_reason(code: int | None) -> str:
 
 
 class ProcessExecutor:
-    """K local worker processes (spawn context), one task each at a time."""
+    """K local worker processes (spawn context), one task each at a time; ``wall_limit_s``: see
+    the module docstring."""
 
-    def __init__(self, workers: int | None = None) -> None:
+    def __init__(self, workers: int | None = None, wall_limit_s: float | None = None) -> None:
         self.workers = max(1, workers or os.cpu_count() or 1)
+        self.wall_limit_s = wall_limit_s
         self._pids: list[int] = []
 
     @property
@@ -452,6 +466,11 @@ class ProcessExecutor:
                                 f"last: {slot.who} {_exit_reason(slot.process.exitcode)}")
                         slot.stop(force=True)
                         slots[i] = slot = _Slot(ctx, job) if pending else slot
+                    elif self.wall_limit_s is not None and time.monotonic() - slot.started > self.wall_limit_s:
+                        task, slot.task = slot.task, None
+                        report(_overran(task, slot.who, self.wall_limit_s))
+                        slot.stop(force=True)
+                        slots[i] = slot = _Slot(ctx, job) if pending else slot
                     if slot.task is None and pending and not cancel.is_set():
                         if not slot.process.is_alive():  # died while idle: no run lost
                             slot.stop(force=True)
@@ -465,6 +484,7 @@ class ProcessExecutor:
     def _dispatch(self, slot: _Slot, pending: deque[EpisodeTask]) -> None:
         task = pending.popleft()
         slot.task = task
+        slot.started = time.monotonic()
         try:
             slot.conn.send(task)
         except OSError:  # it died between tasks: the sentinel reports the task as an error
@@ -497,9 +517,10 @@ class RayExecutor:
     shared file system.
     """
 
-    def __init__(self, address: str, workers: int | None = None) -> None:
+    def __init__(self, address: str, workers: int | None = None, wall_limit_s: float | None = None) -> None:
         self.address = address
         self.workers = max(1, workers or os.cpu_count() or 1)
+        self.wall_limit_s = wall_limit_s
 
     @property
     def description(self) -> str:
@@ -523,12 +544,15 @@ class RayExecutor:
         actor_class = ray.remote(num_cpus=1, max_restarts=0)(_RayEpisodeActor)
         actors = [actor_class.remote(job) for _ in range(min(self.workers, len(pending)))]
         inflight: dict[Any, tuple[int, EpisodeTask]] = {}
+        started_at: dict[Any, float] = {}
         deaths_without_progress = 0
 
         def dispatch(index: int) -> None:
             if pending and not cancel.is_set():
                 task = pending.popleft()
-                inflight[actors[index].run.remote(task)] = (index, task)
+                ref = actors[index].run.remote(task)
+                inflight[ref] = (index, task)
+                started_at[ref] = time.monotonic()
 
         try:
             for index in range(len(actors)):
@@ -537,8 +561,18 @@ class RayExecutor:
                 if cancel.is_set():
                     return
                 ready, _ = ray.wait(list(inflight), num_returns=1, timeout=POLL_S)
+                if self.wall_limit_s is not None:  # overran: its actor is killed and replaced
+                    now = time.monotonic()
+                    for ref in [r for r in inflight if r not in ready and now - started_at[r] > self.wall_limit_s]:
+                        index, task = inflight.pop(ref)
+                        started_at.pop(ref, None)
+                        ray.kill(actors[index])
+                        actors[index] = actor_class.remote(job)
+                        report(_overran(task, "ray actor", self.wall_limit_s))
+                        dispatch(index)
                 for ref in ready:
                     index, task = inflight.pop(ref)
+                    started_at.pop(ref, None)
                     try:
                         got = ray.get(ref)
                         deaths_without_progress = 0

@@ -50,6 +50,17 @@ def is_error(result: Any) -> bool:
     return bool(_field(result, "error")) or _field(result, "outcome") == ERROR
 
 
+def is_blocked(result: Any) -> bool:
+    """Whether ``result`` timed out behind a participant that barred every candidate path the
+    whole episode: the world's failure, not the driver's (``blocked_by``, or its episode event)."""
+    if is_error(result):
+        return False
+    if _field(result, "blocked_by"):
+        return True
+    events = _field(result, "events") or ()
+    return any(isinstance(e, Mapping) and e.get("event") == "blocked_by" for e in events)
+
+
 def is_passed(result: Any) -> bool:
     """Whether ``result`` passed (and did not error)."""
     return not is_error(result) and _field(result, "outcome") == "passed"
@@ -194,6 +205,9 @@ class BatchSummary:
     travel_n: int
     outcomes: dict[str, int] = field(default_factory=dict)
     confidence: float = 0.95
+    # timeouts blocked by the world (:func:`is_blocked`); still judged: the pass rate keeps the
+    # paper's definition, passed / judged
+    blocked: int = 0
 
     @property
     def valid(self) -> int:
@@ -228,7 +242,7 @@ def summarize(results: Iterable[Any], confidence: float = 0.95) -> BatchSummary:
         pass_rate=passed / valid if valid else None,
         wilson_low=low, wilson_high=high,
         travel_mean_s=tt.mean, travel_std_s=tt.std, travel_n=tt.n,
-        outcomes=counts, confidence=confidence,
+        outcomes=counts, confidence=confidence, blocked=sum(1 for r in items if is_blocked(r)),
     )
 
 

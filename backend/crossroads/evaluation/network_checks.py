@@ -1,12 +1,13 @@
 """What a scenario asks of its network, checked against the network before anything is stored.
 
 The scenario format leaves to the world what needs the built network: whether ``approach`` and
-``ego.entrance_lane`` exist, whether the task can be driven from there, whether ``lights.phase``
-is in the signal program. A batch would only find out in its workers, as one error per episode;
-the API (a 422 naming the field) and ``crossroads evaluate`` (before any batch starts) check them
-here instead. The junction is read
-through :func:`~crossroads.network.resolve.open_junction` and the signal program through a cache
-of its own, so a check after the first costs next to nothing.
+``ego.entrance_lane`` exist, whether the task can be driven from there, whether the start distance
+fits on the road before the stop line (``sim.start``, the world's own rule), whether ``lights``
+(an exact phase, or the ego's colour, and the program) are in the signal program. A batch would
+only find out in its workers, as one error per episode; the API (a 422 naming the field),
+``crossroads run`` and ``crossroads evaluate`` (before any batch starts) check them here instead.
+The junction is read through :func:`~crossroads.network.resolve.open_junction` and the signal
+program through a cache of its own, so a check after the first costs next to nothing.
 """
 
 from __future__ import annotations
@@ -17,14 +18,22 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from crossroads.constants import EGO_LENGTH_M
 from crossroads.evaluation.scenario import ScenarioSpec, net_path
 from crossroads.network.junction import JunctionError
 from crossroads.network.model import Approach, Junction
 from crossroads.network.resolve import NetworkNotFoundError, open_junction
 from crossroads.planning import PlanningError, plan_candidates
 from crossroads.planning.internal_lanes import internal_lane_offsets, offset_warning
-from crossroads.sim.signals import SignalError, TlProgram, read_program
+from crossroads.sim.signals import (
+    SignalError,
+    TlProgram,
+    colours_of,
+    movement_link,
+    phase_for_light,
+    read_all_programs,
+    read_program,
+)
+from crossroads.sim.start import start_problem
 from crossroads.validation import SpecError
 
 Problems = list[tuple[str, str]]
@@ -33,14 +42,15 @@ log = logging.getLogger(__name__)
 
 
 @lru_cache(maxsize=64)
-def _program_cached(net_file: Path, mtime_ns: int, tl_id: str) -> TlProgram:
-    return read_program(net_file, tl_id)
+def _program_cached(net_file: Path, mtime_ns: int, tl_id: str, program_id: str | None) -> TlProgram:
+    return read_program(net_file, tl_id, program_id)
 
 
-def signal_program(net_file: str | Path, tl_id: str) -> TlProgram:
-    """A traffic light's program (cached while its network file is unchanged)."""
+def signal_program(net_file: str | Path, tl_id: str, program_id: str | None = None) -> TlProgram:
+    """A traffic light's program (cached while its network file is unchanged): ``program_id``,
+    or the one SUMO runs."""
     net = Path(net_file)
-    return _program_cached(net, net.stat().st_mtime_ns, tl_id)
+    return _program_cached(net, net.stat().st_mtime_ns, tl_id, program_id)
 
 
 def program_json(net_file: str | Path, tl_id: str) -> dict[str, Any] | None:
@@ -49,7 +59,7 @@ def program_json(net_file: str | Path, tl_id: str) -> dict[str, Any] | None:
         program = signal_program(net_file, tl_id)
     except (SignalError, OSError):
         return None
-    return {"tl_id": program.tl_id, "offset_s": program.offset_s,
+    return {"tl_id": program.tl_id, "program_id": program.program_id, "offset_s": program.offset_s,
             "phases": [{"duration_s": p.duration_s, "state": p.state} for p in program.phases]}
 
 
@@ -95,29 +105,59 @@ def _ego_problems(spec: ScenarioSpec, junction: Junction, approach: Approach) ->
         return [("ego.entrance_lane", f"lane {lane_id!r} does not lead {spec.task} (it leads "
                                       f"{', '.join(sorted(turns)) or 'nowhere'}); lanes that do: "
                                       f"{', '.join(able)}")]
-    # the ego's back must lie on the lane (the world would silently start it at the lane's start)
-    room = lanes[lane_id].length_m - EGO_LENGTH_M / 2.0
-    if spec.ego.start_distance_m > room:
-        return [("ego.start_distance_m", f"{spec.ego.start_distance_m:g} m does not fit on lane "
-                                         f"{lane_id!r} ({lanes[lane_id].length_m:.1f} m long): "
-                                         f"at most {room:.1f} m")]
-    return []
+    # the start must fit on the road before the stop line (sim.start: the world's own rule)
+    problem = start_problem(junction, lane_id, spec.ego.start_distance_m)
+    return [] if problem is None else [("ego.start_distance_m", problem)]
 
 
-def _light_problems(spec: ScenarioSpec, junction: Junction) -> Problems:
+def _light_problems(spec: ScenarioSpec, junction: Junction, approach: Approach | None) -> Problems:
+    lights = spec.lights
     try:
-        program = signal_program(junction.net_file, junction.tl_id)
+        program = signal_program(junction.net_file, junction.tl_id, lights.program)
     except SignalError as exc:
-        return [("intersection", str(exc))]
-    phase, n = spec.lights.phase, len(program.phases)
-    if phase >= n:
-        return [("lights.phase", f"the signal program of {junction.tl_id!r} has {n} phases: "
-                                 f"0 to {n - 1}")]
-    duration = program.phases[phase].duration_s
-    if spec.lights.elapsed_s >= duration:
-        return [("lights.elapsed_s", f"phase {phase} lasts {duration:g} s: the time already "
-                                     f"spent in it must be below that")]
+        return [("lights.program" if lights.program is not None else "intersection", str(exc))]
+    if lights.phase is not None:
+        phase, n = lights.phase, len(program.phases)
+        if phase >= n:
+            return [("lights.phase", f"the signal program of {junction.tl_id!r} has {n} phases: "
+                                     f"0 to {n - 1}")]
+        duration = program.phases[phase].duration_s
+        if lights.elapsed_s >= duration:
+            return [("lights.elapsed_s", f"phase {phase} lasts {duration:g} s: the time already "
+                                         f"spent in it must be below that")]
+        return []
+    if approach is None:
+        return []  # the approach is wrong already: no movement to find the ego's light of
+    try:  # the world's start lane: the scenario's, or the first candidate's
+        lane_id = spec.ego.entrance_lane or plan_candidates(
+            junction, spec.task, approach=approach, rho=spec.rho)[0].entrance_lane
+    except PlanningError:
+        return []  # no path for the task: _ego_problems says so
+    try:
+        link = movement_link(approach, spec.task, lane_id)
+    except SignalError as exc:
+        return [("task", str(exc))]
+    try:
+        phase_for_light(program, link, lights.ego_light, lights.elapsed_s)
+    except SignalError as exc:
+        if "time already spent" in str(exc):
+            return [("lights.elapsed_s", str(exc))]
+        return [("lights.ego", str(exc) + _other_programs_hint(junction, program, link, lights.ego_light))]
     return []
+
+
+def _other_programs_hint(junction: Junction, program: TlProgram, link: int, light: str) -> str:
+    """Which other programs of the light show ``light`` on ``link`` (a net may hold a program per
+    time of day, or per stage of a game), for a scenario to choose with ``lights.program``."""
+    try:
+        others = read_all_programs(junction.net_file).get(junction.tl_id, {})
+    except SignalError:
+        return ""
+    showing = [pid for pid, p in others.items() if pid != program.program_id
+               and link < p.n_links and light in colours_of(p, link)]
+    if not showing:
+        return ""
+    return f"; program(s) {', '.join(repr(pid) for pid in showing)} show it {light} (lights.program)"
 
 
 def network_problems(spec: ScenarioSpec, base_dir: str | Path | None = None) -> Problems:
@@ -129,7 +169,7 @@ def network_problems(spec: ScenarioSpec, base_dir: str | Path | None = None) -> 
     approach, problems = _approach_of(spec, junction)
     if approach is not None:
         problems = _ego_problems(spec, junction, approach)
-    return problems + _light_problems(spec, junction)
+    return problems + _light_problems(spec, junction, approach)
 
 
 def internal_lane_warning(spec: ScenarioSpec, base_dir: str | Path | None = None) -> str | None:

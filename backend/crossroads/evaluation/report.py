@@ -422,7 +422,8 @@ details{margin:.4em 0}summary{cursor:pointer}code{font-size:.9em}
 def _rate_cell(s: BatchSummary) -> str:
     if s.pass_rate is None:
         return '<td>—<div class="muted">no valid runs</div></td>'
-    extra = f"n={s.valid}" + (f", {s.errors} err" if s.errors else "")
+    extra = (f"n={s.valid}" + (f", {s.errors} err" if s.errors else "")
+             + (f", blocked by the world: {s.blocked}" if s.blocked else ""))
     return (f"<td>{_pct(s.pass_rate)} <span class=\"muted\">[{_pct(s.wilson_low)}, "
             f"{_pct(s.wilson_high)}]</span><div class=\"muted\">{_esc(extra)}</div></td>")
 
@@ -619,7 +620,9 @@ def render_html(rows: Iterable[BatchRow | Mapping[str, Any]], *, title: str = "C
         out.append(warnings)
 
     out.append("<h2>Results</h2>")
-    out.append("<p class=\"muted\">Pass rate = passed / (runs − errored) with its Wilson 95 % interval; "
+    out.append("<p class=\"muted\">Pass rate = passed / (runs − errored) with its Wilson 95 % interval "
+               "(\"blocked by the world\": timeouts behind a participant that stood across every "
+               "candidate path the whole episode, counted in the rate and named apart); "
                "travel time (stop line → leaving the intersection, passed episodes) mean ± sample std. "
                "Paper columns (SPEC §8, 200 runs per case) appear where the case and policy match; "
                "a paper rate in <span class=\"off\">red</span> lies outside our interval.</p>")
@@ -661,7 +664,7 @@ def render_html(rows: Iterable[BatchRow | Mapping[str, Any]], *, title: str = "C
 # CSV
 
 CSV_FIELDS: tuple[str, ...] = (
-    "batch_id", "scenario", "case", "policy", "runs", "errors", "valid", "passed", "pass_rate",
+    "batch_id", "scenario", "case", "policy", "runs", "errors", "valid", "passed", "blocked", "pass_rate",
     "wilson_low", "wilson_high", "confidence", "travel_mean_s", "travel_std_s", "travel_n",
     "warnings",  # the batch's warnings joined with "; " (empty: none)
 )
@@ -691,6 +694,7 @@ def csv_rows(rows: Iterable[BatchRow | Mapping[str, Any]], *,
         values: dict[str, Any] = {
             "batch_id": r.batch_id, "scenario": r.scenario, "case": r.case, "policy": r.policy,
             "runs": s.runs, "errors": s.errors, "valid": s.valid, "passed": s.passed,
+            "blocked": s.blocked,
             "pass_rate": s.pass_rate, "wilson_low": s.wilson_low, "wilson_high": s.wilson_high,
             "confidence": s.confidence, "travel_mean_s": s.travel_mean_s, "travel_std_s": s.travel_std_s,
             "travel_n": s.travel_n, "warnings": "; ".join(r.warnings),

@@ -24,7 +24,8 @@ from crossroads.evaluation.report import (
 def _rate(s: BatchSummary) -> str:
     if s.pass_rate is None:
         return "— (no valid runs)"
-    errors = f", {s.errors} err" if s.errors else ""
+    errors = (f", {s.errors} err" if s.errors else "") + (
+        f", blocked by the world: {s.blocked}" if s.blocked else "")
     return (f"{_pct(s.pass_rate, 1)} ({s.passed}/{s.valid}{errors}) "
             f"[{_pct(s.wilson_low, 1)}, {_pct(s.wilson_high, 1)}]")
 

@@ -10,8 +10,9 @@ Errors are :class:`~crossroads.validation.SpecError`\\ s naming the file and the
 (``abnormal.overspeed.share``), from the same machinery as the intersection specs.
 
 What is *not* checked here, on purpose: whether the task is possible from the approach, whether
-``approach`` / ``ego.entrance_lane`` exist and whether ``lights.phase`` exists in the signal
-program. Those need the built network and are checked by the planner and the world, once.
+``approach`` / ``ego.entrance_lane`` exist, whether the start distance fits on the road and whether
+``lights`` exist in the signal program. Those need the built network and are checked by
+:mod:`crossroads.evaluation.network_checks` (run, evaluate, the API and the studio), and the world.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from pydantic import (
     Field,
     Tag,
     field_validator,
+    model_validator,
 )
 
 from crossroads.constants import (
@@ -46,6 +48,7 @@ from crossroads.network import catalogue
 from crossroads.network.resolve import NET_SUFFIXES, NetworkNotFoundError, resolve_net
 from crossroads.sim.abnormal import AbnormalConfig
 from crossroads.sim.config import (
+    DEFAULT_GRIDLOCK_STAND_S,
     DEFAULT_START_DISTANCE_M,
     DEFAULT_TIMEOUT_S,
     DEFAULT_WARMUP_S,
@@ -53,12 +56,13 @@ from crossroads.sim.config import (
     SignalStart,
     WorldConfig,
 )
-from crossroads.sim.traffic import TrafficDemand
-from crossroads.validation import SpecError, load_yaml, validate_model
+from crossroads.sim.traffic import DEFAULT_TURN_SHARES, TrafficDemand
+from crossroads.validation import FieldProblem, SpecError, load_yaml, validate_model
 
 SCENARIO_VERSION = 1  # the format version this code reads and writes
 SUFFIXES = (".yaml", ".yml")
 MAX_SEED = 2**63 - 1  # seeds must fit a signed 64-bit integer (SQL BIGINT, JSON consumers)
+MAX_RUNS = 10_000  # [-] runs of one batch: its seeds are all derived before the first episode
 SEED_MASK = 0x7FFF_FFFF  # run seeds are 31-bit: they fit SUMO's --seed (a C int) everywhere
 
 # Shared by every model: unknown keys are errors (a typo must not silently fall back to a
@@ -118,11 +122,11 @@ class EgoSpec(BaseModel):
     model_config = _CONFIG
 
     start_distance_m: float = Field(
-        default=DEFAULT_START_DISTANCE_M, gt=0.0,
+        default=DEFAULT_START_DISTANCE_M, gt=0.0, le=1000.0,
         description="[m] Distance of the ego's start before the stop line, along its entrance lane.",
     )
     start_speed_mps: float = Field(
-        default=PASS_SPEED_FACTOR_OUTSIDE * V_LIMIT_MPS, ge=0.0,
+        default=PASS_SPEED_FACTOR_OUTSIDE * V_LIMIT_MPS, ge=0.0, le=40.0,
         description="[m/s] Initial speed; default 0.8·V_limit = 8.33 m/s, the pass-mode cruise "
         "speed outside the intersection (SPEC §1).",
     )
@@ -135,13 +139,56 @@ class EgoSpec(BaseModel):
 class LightsSpec(BaseModel):
     """The signal program's state when the ego enters (after the warm-up).
 
-    "Green at start" is ``phase: 0, elapsed_s: 0``: phase 0 is the ego's axis green (SPEC §2).
+    Either ``ego``, the colour the ego's own movement shows, found in the junction's program
+    (``sim.signals.phase_for_light``), or ``phase``, an exact index into the program. Neither:
+    ``ego: green``, green at the start on any network (phase 0 is so only on the catalogue's).
     """
 
     model_config = _CONFIG
 
-    phase: int = Field(default=0, ge=0, description="[-] Index into the tlLogic's phases (0: the ego's axis green).")
-    elapsed_s: float = Field(default=0.0, ge=0.0, description="[s] Time already spent in that phase.")
+    ego: Literal["green", "yellow", "red"] | None = Field(
+        default=None,
+        description="The ego's light at entry: green, yellow or red, from the junction's own "
+        "program (default: green, unless phase is given).")
+    phase: int | None = Field(
+        default=None, ge=0, le=999,
+        description="[-] Exact index into the tlLogic's phases instead of ego (on the catalogue's "
+        "intersections 0 is the ego's axis green).")
+    elapsed_s: float = Field(
+        default=0.0, ge=0.0, le=3600.0,
+        description="[s] Time already spent in that colour (with ego) or phase (with phase).")
+    program: str | None = Field(
+        default=None, min_length=1, max_length=100,
+        description="programID of the light's program to run, for a net with several (default: "
+        "the one SUMO runs, the last in the file).")
+
+    @model_validator(mode="after")
+    def _ego_or_phase(self) -> LightsSpec:
+        if self.ego is not None and self.phase is not None:
+            raise FieldProblem("phase", "give either ego (the ego's colour) or phase (an exact "
+                                        "phase), not both")
+        return self
+
+    @property
+    def ego_light(self) -> Literal["green", "yellow", "red"]:
+        """The colour asked for (green when neither ego nor phase is given)."""
+        return self.ego or "green"
+
+
+class TurnShares(BaseModel):
+    """Shares of an approach's vehicles by turn (renormalised over the turns it has)."""
+
+    model_config = _CONFIG
+
+    left: float = Field(default=DEFAULT_TURN_SHARES[0], ge=0.0, le=1.0, description="[-] left-turners.")
+    straight: float = Field(default=DEFAULT_TURN_SHARES[1], ge=0.0, le=1.0, description="[-] straight on.")
+    right: float = Field(default=DEFAULT_TURN_SHARES[2], ge=0.0, le=1.0, description="[-] right-turners.")
+
+    @model_validator(mode="after")
+    def _some_traffic(self) -> TurnShares:
+        if self.left + self.straight + self.right <= 0.0:
+            raise ValueError("at least one share must be > 0")
+        return self
 
 
 class TrafficSpec(BaseModel):
@@ -150,11 +197,19 @@ class TrafficSpec(BaseModel):
     model_config = _CONFIG
 
     vehicles_per_hour: float = Field(
-        default=VEHICLES_PER_HOUR_PER_LANE, ge=0.0, description="[veh/h] per entrance lane.")
+        default=VEHICLES_PER_HOUR_PER_LANE, ge=0.0, le=1800.0, description="[veh/h] per entrance lane.")
     cyclists_per_hour: float = Field(
-        default=CYCLISTS_PER_HOUR_PER_LANE, ge=0.0, description="[bicycles/h] per entrance lane.")
+        default=CYCLISTS_PER_HOUR_PER_LANE, ge=0.0, le=1800.0, description="[bicycles/h] per entrance lane.")
     pedestrians_per_hour: float = Field(
-        default=PEDESTRIANS_PER_HOUR_PER_LANE, ge=0.0, description="[pedestrians/h] per entrance lane.")
+        default=PEDESTRIANS_PER_HOUR_PER_LANE, ge=0.0, le=3600.0, description="[pedestrians/h] per entrance lane.")
+    turn_shares: TurnShares | None = Field(
+        default_factory=TurnShares,
+        description="How an approach's vehicles (per entrance lane × its lanes) split over the turns; "
+        "null: every entrance lane its own rate, split evenly over that lane's turns.")
+    cyclist_left_turns: bool = Field(
+        default=False,
+        description="Whether cyclists turn left (across every lane, as SUMO models it); by default "
+        "they ride straight on or right, since direct left turns gridlocked the junction.")
 
 
 class OverspeedSpec(BaseModel):
@@ -167,7 +222,7 @@ class OverspeedSpec(BaseModel):
         description="[-] Fraction 0..1 of the opposite straight vehicles that over-speed (paper: 0.15).",
     )
     excess: float = Field(
-        ge=0.0, description="[-] Fraction by which they exceed the limit: 0.1 = +10 % (paper: 0.1, 0.2, 0.5).")
+        ge=0.0, le=1.0, description="[-] Fraction by which they exceed the limit: 0.1 = +10 % (paper: 0.1, 0.2, 0.5).")
 
 
 class RoundingSpec(BaseModel):
@@ -205,7 +260,7 @@ class ScenarioSpec(BaseModel):
         min_length=1, max_length=100, pattern=r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$",
         description="Identifier (letters, digits, '_', '.', '-'): used in file names, URLs and reports.",
     )
-    description: str = Field(default="", description="Free text: what the scenario tests and why.")
+    description: str = Field(default="", max_length=10_000, description="Free text: what the scenario tests and why.")
     intersection: IntersectionRef = Field(
         description="A catalogue name (scenarios/intersections/<name>.yaml, e.g. 'c_three_lane') "
         "or {net: path to a .net.xml, junction: optional junction id}.",
@@ -218,21 +273,28 @@ class ScenarioSpec(BaseModel):
     traffic: TrafficSpec = Field(default_factory=TrafficSpec, description="Traffic demand.")
     abnormal: AbnormalSpec = Field(default_factory=AbnormalSpec, description="Abnormal behaviours (SPEC §8).")
     warmup_s: float = Field(
-        default=DEFAULT_WARMUP_S, ge=0.0,
+        default=DEFAULT_WARMUP_S, ge=0.0, le=600.0,
         description="[s] SUMO runs this long before the ego enters, to fill the junction.")
     timeout_s: float = Field(
-        default=DEFAULT_TIMEOUT_S, gt=0.0,
+        default=DEFAULT_TIMEOUT_S, gt=0.0, le=3600.0,
         description="[s] Ego time after which an unfinished episode counts as a timeout.")
-    runs: int = Field(default=EVALUATION_RUNS, ge=1, description="[-] Episodes per policy (paper: 200).")
+    gridlock_stand_s: float | None = Field(
+        default=DEFAULT_GRIDLOCK_STAND_S, gt=0.0, le=3600.0,
+        description="[s] A participant other than the ego that stands this long inside the junction "
+        "(on an internal lane or a crossing) is removed, and the removal is an episode event; "
+        "null turns this gridlock breaker off.")
+    runs: int = Field(default=EVALUATION_RUNS, ge=1, le=MAX_RUNS, description="[-] Episodes per policy (paper: 200).")
     seed: int = Field(
         default=0, ge=0, le=MAX_SEED,
         description="[-] Base seed; the run seeds are derived from it (see run_seeds), so every "
         "policy meets the same traffic.")
     perception_noise: bool = Field(
         default=True, description="Add the Gaussian perception noise of SPEC §3 to the observations.")
-    rho: float = Field(
-        default=RHO_BEZIER, gt=0.0, lt=1.0,
-        description="[-] ρ of the Bezier candidate paths, in (0, 1) (paper: 0.6).")
+    rho: float | None = Field(
+        default=None, gt=0.0, lt=1.0,
+        description="[-] ρ of the Bezier candidate paths, in (0, 1), for every path (the paper's "
+        f"construction: {RHO_BEZIER}); default: chosen per path so that it stays within the ego's "
+        "steering limit (planning.curves).")
 
     @field_validator("version", mode="before")
     @classmethod
@@ -410,14 +472,20 @@ def to_world_config(spec: ScenarioSpec, base_dir: str | Path | None = None) -> W
         task=spec.task,
         junction_id=junction_id,
         approach=spec.approach,
-        demand=TrafficDemand(t.vehicles_per_hour, t.cyclists_per_hour, t.pedestrians_per_hour),
+        demand=TrafficDemand(
+            t.vehicles_per_hour, t.cyclists_per_hour, t.pedestrians_per_hour,
+            cyclist_left_turns=t.cyclist_left_turns,
+            turn_shares=None if t.turn_shares is None else (
+                t.turn_shares.left, t.turn_shares.straight, t.turn_shares.right)),
         abnormal=abnormal_config(spec),
-        signal_start=SignalStart(phase_index=spec.lights.phase, elapsed_s=spec.lights.elapsed_s),
+        signal_start=SignalStart(phase_index=spec.lights.phase, elapsed_s=spec.lights.elapsed_s,
+                                 ego_light=spec.lights.ego_light, program_id=spec.lights.program),
         ego_start=EgoStart(distance_to_stop_line_m=spec.ego.start_distance_m,
                            speed_mps=spec.ego.start_speed_mps,
                            entrance_lane=spec.ego.entrance_lane),
         warmup_s=spec.warmup_s,
         timeout_s=spec.timeout_s,
+        gridlock_stand_s=spec.gridlock_stand_s,
         perception_noise=spec.perception_noise,
         rho=spec.rho,
     )

@@ -51,7 +51,7 @@ from crossroads.idc.state import (
 # [m] (choice) added to the sum of the radii. 1.0 m, not the 0.5 m used first: the circles leave a
 # car's corners out by up to 0.41 m, perceived positions and lengths are noisy (σ 0.15 m and 0.3 m),
 # and the exterior penalty lets a trained policy settle slightly inside the bound. With 0.5 m the
-# models of session 2 crept into queued cars at 1-3 m/s with the model's g only 0.4-0.5 m violated
+# first trained models crept into queued cars at 1-3 m/s with the model's g only 0.4-0.5 m violated
 # (measured on the nominal left turn). Two cars in neighbouring 3.5 m lanes still do not bind
 # (1 + 1 + 1.0 = 3.0 m < 3.5 m).
 SAFETY_MARGIN_M = 1.0

@@ -2,7 +2,7 @@
 
 **(choice)** Not in the paper; used by the safety shield (:mod:`crossroads.idc.shield`). SUMO's
 pedestrians walk over a crossing whatever stands on it, so an ego that stops with its front on a
-crosswalk is walked into: with the shield holding the wheel (session 21), 15 of the 44 collisions of
+crosswalk is walked into: with the shield holding the wheel, 15 of the 44 collisions of
 200 nominal left turns (150 s timeout) were pedestrians walking into the ego's front, 14 at the exit
 crosswalk and 1 at the entry, 10 of them into an ego standing still. Drivers stop short of a crosswalk that someone is
 on, not on it: a claimed crossing is a line the shield holds the ego short of, as it holds a red

@@ -39,7 +39,7 @@ from crossroads.sim.world import Observation
 # where they walked into it (6 of the 35 collisions of 200 nominal left turns, 150 s timeout; seed
 # 896230294 at 60 s). Why green only: held inside the junction past its green, the ego was hit by
 # the cross traffic SUMO lets go (4 more collisions at 150 s, seeds 1092899071, 154812432).
-# docs/measurements/safety-shield.md, "Session 23"
+# docs/tried/shield.md, "Holding a crossing it braked for"
 HELD_CROSSING_RELEASE_STEPS = 10
 
 
@@ -173,5 +173,5 @@ def _light_holds(observation: Observation) -> bool:
 def _line_if(holds: bool, observation: Observation) -> float | None:
     """The shield's line: the front bumper's distance to the stop line [m] when the light ``holds``
     the ego there, else None. Why the shield needs it: the trained policies follow the stop profile
-    loosely and crossed a red line on an empty road at 4.7 m/s (docs/measurements/red-lights.md)."""
+    loosely and crossed a red line on an empty road at 4.7 m/s (docs/tried/world.md, "Red lights")."""
     return observation.distance_to_stop_line_m if holds else None

@@ -17,7 +17,7 @@ D_y the distance to the stop line, t_y the remaining yellow time.
 
 Why step 5: the paper gives the pass mode when C2 fails "to encourage rushing before the red
 lights". Evaluated at every step, C2 also fails for a slow ego far from the line as the yellow runs
-out (t_y < t_e), where no rushing beats the red. Measured (session 18, run 17 with the shield, the
+out (t_y < t_e), where no rushing beats the red. Measured (the shipped APG with the shield, the
 nominal left turn with a 150 s timeout, 200 seeds): 9 crossed the line on red, 8 of them within
 2.7 s of its start; seed 1428211589 was in the stop mode with its bumper 3.8 m short of the line at
 0.6 m/s, sped up to 2.3 m/s along the stop profile, got the pass mode 0.6 s before red at 2.0 m

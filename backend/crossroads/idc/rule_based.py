@@ -48,7 +48,7 @@ PREDICTION_STEP_S = 0.5  # [s]
 STOP_GAP_M = 3.0  # [m] stop this far short of a conflict (front bumper to conflict point)
 # In the stop mode it stops the front bumper constants.STOP_LINE_GAP_M short of the stop line. Why a
 # stop of its own and not the stop profile alone: the speed loop lags a falling reference by decel /
-# SPEED_GAIN (1.16 / 0.8 ≈ 1.5 m/s), so it crossed a red line on an empty road at 1.7 m/s (session 18)
+# SPEED_GAIN (1.16 / 0.8 ≈ 1.5 m/s), so it crossed a red line on an empty road at 1.7 m/s (measured)
 MIN_CHECK_DISTANCE_M = 10.0  # [m] the path ahead that is always checked for conflicts
 CHECK_TIME_S = 3.0  # [s] plus the distance covered in this time at the current speed
 SEARCH_BEHIND = 10  # path points searched behind the last nearest one (5 m at 0.5 m spacing)

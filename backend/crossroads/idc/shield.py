@@ -6,8 +6,8 @@
 Why: 2 s before the collisions of the trained models on the nominal left turn, the training model
 itself (rl.model: f_ego, f_other with each participant's route curvature, ξ ≡ 0) already predicted
 the policy's plan to run into the other participant — the bodies' circles met within the T = 25
-steps in 24 of run 9's 37 collisions, while full braking kept J_safe under 1 in 27 of them
-(docs/measurements/why-the-models-crash.md §9). The policy does not act on a danger its model
+steps in 24 of 37 collisions of one trained APG, while full braking kept J_safe under 1 in 27 of
+them (docs/tried/shield.md). The policy does not act on a danger its model
 sees; the shield does.
 
 The check, every step, after the value network has chosen τ* and the policy its action u: the
@@ -39,12 +39,12 @@ While the light holds the ego at the stop line (red, or yellow in the stop mode:
 that ends less than ``STOP_LINE_GAP_M`` short of it intrudes by the shortfall (:func:`travelled_m`),
 and the larger of the two intrusions counts. Without it the shipped APG, which tracks the stop
 profile loosely, crossed a red line on an empty road at 4.7 m/s; with it APG and DPG stand 0.50 m
-short (docs/measurements/red-lights.md §4). A pedestrian crossing that someone is on in the ego's
+short (docs/tried/shield.md). A pedestrian crossing that someone is on in the ego's
 path is such a line too, while full braking can still stand short of it (the decision passes the
 nearer of the two: :mod:`crossroads.idc.crosswalks`).
 
 What was measured against it, on 60 seeds of the nominal left turn that are not the evaluation's
-(base seed 777) with run 5's APG — passed / collisions / timeouts: this rule 16 / 27 / 16; counting
+(base seed 777) with an earlier APG — passed / collisions / timeouts: this rule 16 / 27 / 16; counting
 only what the backups add to the intrusions of the present 11 / 38 / 10; braking whenever *brake*
 enters the clearance no sooner than *go* 10 / 35 / 13; ranking by the exterior penalty Σ max(0, g)²
 along each backup 12 / 27 / 19; no shield 8 / 52 / 0; the rule-based controller 24 / 3 / 33. Where
@@ -53,7 +53,7 @@ deepest intrusions say little (the shield may then keep the policy's action); th
 not getting there.
 
 Checking the go-then-brake backup, not the policy's own plan over the next 2.5 s, matters: measured
-on the first 20 seeds of the nominal left turn with run 5's APG, a shield that braked only once the
+on the first 20 seeds of the nominal left turn with an earlier APG, a shield that braked only once the
 plan's circles met within 25 steps stepped in too late, and in 3 of them the ego (6.8–8.4 m/s five
 seconds before) still hit a standing car while braking. Pure numpy, vectorised over time for the
 participants (their prediction does not depend on the ego), so a check costs ~0.7 ms.
@@ -159,12 +159,12 @@ class Backups(NamedTuple):
 
 # [Δδ rad/s, Δa m/s³] the shield's braking step (:func:`braking_action`) until the end of the turn, in
 # its command and in both backups alike: full braking, the wheel held. Why the command too: the
-# backups were checked with the wheel held, but until session 21 a braking step kept the policy's
-# steering rate. On the nominal left turn the trained policy swerves left around a queued car; *go*,
-# curving left on the held wheel, cleared the car, the ego braked while the policy steered back
-# right, and it hit the car it had been predicted to pass (27 of the 57 collisions of 200 runs,
-# 150 s timeout: the ego 4.0–4.8 m behind a standing car, centres, and 0.2–2.2 m to its left; seeds
-# 352480436, 1284190969, docs/measurements/safety-shield.md)
+# backups are checked with the wheel held, and a braking step that kept the policy's steering rate
+# drove another path than the one checked. On the nominal left turn the trained policy swerves left
+# around a queued car; *go*, curving left on the held wheel, cleared the car, the ego braked while
+# the policy steered back right, and it hit the car it had been predicted to pass (27 of the 57
+# collisions of 200 runs, 150 s timeout: the ego 4.0–4.8 m behind a standing car, centres, and
+# 0.2–2.2 m to its left; seeds 352480436, 1284190969, docs/tried/shield.md)
 HOLD_WHEEL = np.array([0.0, -JERK_MAX])
 HOLD_WHEEL.flags.writeable = False  # shared by every braking step: a caller that wants to change it copies
 # [rad] within this of its path's exit heading the ego is at the end of its turn: braking there turns
@@ -202,7 +202,7 @@ def go_is_worse(by_obstacle: np.ndarray, tie_m: float = SHIELD_TIE_M, before_lin
 
     Per obstacle, not the deepest of all: compared by the deepest intrusion alone, another
     participant equally deep along both backups hid the queued car ahead, which the ego crept into
-    from a stand at 0.3 m/s (150 s nominal left, seed 2124181941, docs/measurements/safety-shield.md).
+    from a stand at 0.3 m/s (150 s nominal left, seed 2124181941, docs/tried/shield.md).
 
     Two exceptions, where braking wins whatever the participants' intrusions say:
 

@@ -30,8 +30,8 @@ path point's lateral offset in the ego's frame [m] (positive left), then for eac
 there relative to the ego's [rad, wrapped], then for each the speed profile's v_ref there [m/s].
 Why: x_track describes the nearest point only and :func:`network_input` drops the ego's absolute
 pose, so a network fed the paper's 108 values cannot tell that the path bends or that the pass
-profile drops at the stop line a few metres ahead (measured, docs/measurements/why-the-models-crash.md
-§14). Networks built with ``path_preview`` read them; the model's cost never does, and networks
+profile drops at the stop line a few metres ahead (measured: docs/tried/training.md, "Seeing the
+path ahead"). Networks built with ``path_preview`` read them; the model's cost never does, and networks
 without it ignore them (they read the first 108), so a preview state serves both.
 """
 
@@ -567,7 +567,7 @@ def lead_features(states: Any) -> Any:
 
     Why: the 16 participant slots are sorted by distance, so the car the ego queues behind sits in
     whichever slot its distance gives it among the oncoming cars, cyclists and pedestrians around;
-    measured (session 16, run 28 at 2 000 iterations), 2 s before 31 collisions with a vehicle ahead
+    measured (an APG trained with the stopping tail and the mean loss), 2 s before 31 collisions with a vehicle ahead
     the policy's plan met that vehicle in 3 with the other slots padded and in 17 with the scene as seen.
     A straight corridor, not the path: it is the ego's own heading that carries it into what is ahead
     within a few seconds. Differentiable in the positions (the gap) through the chosen participant.

@@ -18,11 +18,11 @@ crossing, compute the state strings, and pass 2 (``netconvert -s pass1.net.xml -
 replaces the program. The build then checks that SUMO's own turn classification (``dir``) agrees
 with the spec's and that link indices did not move between the passes.
 
-Pass 2 also gives every car connection the shape of the paper's candidate path between its lanes
-(``shapes.con.xml``: the cubic Bezier of :func:`crossroads.planning.routes.build_candidate` with the
-paper's ρ, drawn on pass 1's lanes), so SUMO's internal lanes run where the ego's candidate paths
-run. Why: netconvert's own internal lanes were up to 2.5 m off the Bezier paths into the two inner
-exit lanes of the nominal left turn (docs/measurements/ego-in-sumo.md), so SUMO's junction model
+Pass 2 also gives every car connection the shape of the candidate path between its lanes
+(``shapes.con.xml``: the cubic Bezier of :func:`crossroads.planning.routes.build_candidate` with
+the ρ the planner chooses, drawn on pass 1's lanes), so SUMO's internal lanes run where the ego's
+candidate paths run. Why: netconvert's own internal lanes were up to 2.5 m off the Bezier paths into the two inner
+exit lanes of the nominal left turn (docs/tried/world.md), so SUMO's junction model
 placed the ego, its followers and its foes where the ego was not.
 
 Cache: a build lives in ``<cache root>/<key>/`` where the key hashes the canonical spec JSON,
@@ -46,12 +46,16 @@ from dataclasses import asdict, dataclass
 from functools import lru_cache
 from importlib import metadata
 from pathlib import Path
+from typing import Literal
+
+from crossroads.constants import ALL_RED_S, PEDESTRIAN_CLEARANCE_S
 
 from crossroads.network.junction import read_junction
 from crossroads.network.spec import ApproachSpec, IntersectionSpec
+from crossroads.planning.drivable import road_check
 from crossroads.planning.routes import PlanningError, build_candidate
 
-BUILD_VERSION = "2"  # bump whenever the written XML or the netconvert options change
+BUILD_VERSION = "3"  # bump whenever the written XML or the netconvert options change
 JUNCTION_ID = "C"  # the junction's node id, also the traffic light's id
 NET_FILE = "net.net.xml"
 BUILD_INFO_FILE = "build.json"
@@ -275,7 +279,10 @@ def _bike_lane(a: ApproachSpec) -> int | None:
 
 def _nodes_xml(spec: IntersectionSpec) -> ET.Element:
     root = ET.Element("nodes")
-    ET.SubElement(root, "node", id=JUNCTION_ID, x="0.00", y="0.00", type="traffic_light", tlType="static")
+    centre = {"id": JUNCTION_ID, "x": "0.00", "y": "0.00", "type": "traffic_light", "tlType": "static"}
+    if spec.kerb_radius_m is not None:
+        centre["radius"] = f"{spec.kerb_radius_m:.3f}"
+    ET.SubElement(root, "node", centre)
     for a in spec.approaches:
         origin, out, _ = _leg_frame(a)
         x, y = origin[0] + a.length_m * out[0], origin[1] + a.length_m * out[1]
@@ -367,7 +374,7 @@ def _connection_shapes_xml(spec: IntersectionSpec, net_file: Path) -> tuple[ET.E
         entrance, exit_ = f"{a.in_edge}_{from_lane}", f"{b.out_edge}_{to_lane}"
         try:
             path = build_candidate("shape", "", a.in_edge, junction.lanes[entrance], junction.lanes[exit_],
-                                   spacing_m=CONNECTION_SHAPE_SPACING_M)
+                                   spacing_m=CONNECTION_SHAPE_SPACING_M, road=road_check(junction, a.in_edge))
         except PlanningError as exc:
             unshaped.append((f"{entrance} -> {exit_}", str(exc)))
             continue
@@ -422,32 +429,45 @@ def _tls_links(spec: IntersectionSpec, net_file: Path) -> list[TlsLink]:
     return links
 
 
-def link_state(link: TlsLink, green_legs: tuple[str, ...], yellow: bool) -> str:
-    """SUMO state character of one link during a phase's green (``yellow=False``) or yellow.
+Stage = Literal["green", "clearance", "yellow", "all_red"]
+
+
+def link_state(link: TlsLink, green_legs: tuple[str, ...], stage: Stage) -> str:
+    """SUMO state character of one link in one stage of a phase.
 
     SPEC §2: right turns are permanently green-with-yield ('g'); straight links 'G' and left links
-    'g' (unprotected: they yield to the opposite straight) while their leg has green, 'y' in its
-    yellow, 'r' otherwise. A crossing over a leg is green while that leg has red (its traffic runs
-    parallel to the pedestrians), red during yellows.
+    'g' (unprotected: they yield to the opposite straight) while their leg has green (its
+    ``green`` and ``clearance`` stages), 'y' in its yellow, 'r' otherwise and in the all-red. A
+    crossing over a leg has its walk ('G') while that leg has red (its traffic runs parallel to
+    the pedestrians), except in the pedestrian clearance at the end of that green, the yellows
+    and the all-reds.
     """
     if link.kind == "crossing":
-        return "G" if (link.leg not in green_legs and not yellow) else "r"
+        return "G" if (stage == "green" and link.leg not in green_legs) else "r"
     if link.turn == "right":
         return "g"
-    if link.leg not in green_legs:
+    if stage == "all_red" or link.leg not in green_legs:
         return "r"
-    if yellow:
+    if stage == "yellow":
         return "y"
     return "G" if link.turn == "straight" else "g"
+
+
+def phase_stages(green_s: float, yellow_s: float) -> list[tuple[Stage, float]]:
+    """The stages of one phase and their durations [s]: the walk (green), the pedestrian
+    clearance, the yellow and the all-red (constants: PEDESTRIAN_CLEARANCE_S, ALL_RED_S);
+    a green no longer than the clearance has no walk."""
+    clearance = min(PEDESTRIAN_CLEARANCE_S, green_s)
+    stages: list[tuple[Stage, float]] = [("green", green_s - clearance), ("clearance", clearance),
+                                         ("yellow", yellow_s), ("all_red", ALL_RED_S)]
+    return [(stage, duration) for stage, duration in stages if duration > 0]
 
 
 def _program_xml(spec: IntersectionSpec, links: list[TlsLink]) -> ET.Element:
     root = ET.Element("tlLogics")
     logic = ET.SubElement(root, "tlLogic", id=JUNCTION_ID, type="static", programID="0", offset="0")
     for phase in spec.signal_phases:
-        for yellow, duration in ((False, phase.green_s), (True, phase.yellow_s)):
-            if duration <= 0:
-                continue
-            state = "".join(link_state(k, phase.green_legs, yellow) for k in links)
+        for stage, duration in phase_stages(phase.green_s, phase.yellow_s):
+            state = "".join(link_state(k, phase.green_legs, stage) for k in links)
             ET.SubElement(logic, "phase", duration=f"{duration:g}", state=state)
     return root

@@ -30,6 +30,7 @@ import math
 from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +55,7 @@ from crossroads.network.model import (
     Crossing,
     Junction,
     Lane,
+    LaneChain,
     Turn,
 )
 from crossroads.network.netxml import (
@@ -79,6 +81,9 @@ MEDIAN_MIN_GAP_M = 0.5  # [m] gap between carriageways above which a median is d
 MEDIAN_EXTENT_M = 80.0  # [m] median drawn this far back from the stop line (~sensor range)
 MAX_DEFAULT_CANDIDATES = 50  # traffic-light nodes tried, nearest first, for the default junction
 MIN_AREA_M2 = 0.5  # [m²] polygons smaller than this are treated as degenerate
+LEAD_IN_MAX_M = 250.0  # [m] how far upstream of a stop line the road towards it is traced
+LEAD_OUT_MAX_M = 100.0  # [m] how far downstream of an exit lane's start the road on is traced
+LEAD_IN_MAX_BEND_RAD = math.radians(20.0)  # lanes joined into a lead-in or lead-out bend no more than this
 CAR_CLASS = "passenger"
 FOOT_CLASSES = frozenset({"pedestrian", "wheelchair"})
 
@@ -93,15 +98,35 @@ class JunctionError(ValueError):
 
 
 def _load(net_file: str | Path) -> NetXml:
+    path = Path(net_file)
     try:
-        return read_net_xml(net_file)
+        stat = path.stat()
+    except OSError:
+        stat = None
+    try:
+        if stat is None:
+            return read_net_xml(path)  # raises the reader's own "not found"
+        return _load_cached(path.resolve(), stat.st_mtime_ns, stat.st_size)
     except NetXmlError as exc:
         raise JunctionError(str(exc)) from exc
 
 
+@lru_cache(maxsize=2)
+def _load_cached(path: Path, mtime_ns: int, size: int) -> NetXml:
+    """The parsed net, kept for the next junction read from the same unchanged file (a city net
+    takes seconds to parse; reading its junctions one by one parsed it each time). The reader
+    changes nothing of it but its ``derived`` memo."""
+    return read_net_xml(path)
+
+
 def _tl_ids_by_node(net: NetXml) -> dict[str, Counter[str]]:
-    """For every node, how many of the connections entering it each traffic light controls."""
+    """For every node, how many of the connections entering it each traffic light controls
+    (kept with the parsed net)."""
+    cached = net.derived.get("tl_ids_by_node")
+    if cached is not None:
+        return cached  # type: ignore[no-any-return]
     result: dict[str, Counter[str]] = {}
+    net.derived["tl_ids_by_node"] = result
     for c in net.connections:
         edge = net.edges.get(c.from_edge)
         if c.tl is None or edge is None or edge.function != "normal" or edge.to_node is None:
@@ -419,6 +444,8 @@ def _car_connections(net: NetXml, entrance: Sequence[LaneRec], inner: set[str],
                     continue
                 seen.add((lane.id, m.to_lane))
                 used_internal.update(m.internal_lanes)
+                inner_edges = tuple(dict.fromkeys(net.lanes[l].edge_id for l in m.internal_lanes
+                                                  if not l.startswith(":") and l in net.lanes))
                 connections.append(Connection(
                     from_lane=lane.id,
                     to_lane=m.to_lane,
@@ -426,6 +453,7 @@ def _car_connections(net: NetXml, entrance: Sequence[LaneRec], inner: set[str],
                     via_lane=conn.via,
                     via_shape=_concat(m.pieces),
                     tl_link_index=conn.link_index,
+                    inner_edges=inner_edges,
                 ))
     return tuple(connections), used_internal
 
@@ -583,8 +611,10 @@ def _crossings(net: NetXml, nodes: Sequence[str], tl_id: str) -> tuple[Crossing,
     link_by_crossing = {c.to_edge: c.link_index for c in net.connections
                         if c.tl == tl_id and c.link_index is not None}
     crossings = []
+    prefixes = tuple(f":{n}_" for n in nodes)  # a quick filter before the exact owner test
     for edge in net.edges.values():
-        if edge.function != "crossing" or internal_edge_owner(edge.id, net.nodes) not in nodes:
+        if edge.function != "crossing" or not edge.id.startswith(prefixes) \
+                or internal_edge_owner(edge.id, net.nodes) not in nodes:
             continue
         lane = _lanes_of(net, edge)[0]
         polygon = _outline_polygon(lane.outline) or _lane_polygon(lane)
@@ -601,7 +631,8 @@ def _crossings(net: NetXml, nodes: Sequence[str], tl_id: str) -> tuple[Crossing,
 
 def _walking_areas(net: NetXml, nodes: Sequence[str]) -> tuple[Polygon, ...]:
     areas = []
-    for edge in sorted(net.edges.values(), key=lambda e: e.id):
+    prefixes = tuple(f":{n}_" for n in nodes)  # a quick filter before the exact owner test
+    for edge in sorted((e for e in net.edges.values() if e.id.startswith(prefixes)), key=lambda e: e.id):
         if edge.function != "walkingarea" or internal_edge_owner(edge.id, net.nodes) not in nodes:
             continue
         for lane in _lanes_of(net, edge):
@@ -609,6 +640,90 @@ def _walking_areas(net: NetXml, nodes: Sequence[str]) -> tuple[Polygon, ...]:
             if poly is not None:
                 areas.append(poly)
     return tuple(areas)
+
+
+# --- lead-ins and lead-outs: the road before each entrance lane and after each exit lane -----------
+
+
+def _connections_into(net: NetXml) -> dict[str, list[ConnRec]]:
+    """Connections between normal edges, by the lane they lead into (kept with the parsed net:
+    every junction read from one net uses the same)."""
+    into = net.derived.get("connections_into")
+    if into is None:
+        into = {}
+        for c in net.connections:
+            if not (c.from_edge.startswith(":") or c.to_edge.startswith(":")):
+                into.setdefault(c.to_lane_id, []).append(c)
+        net.derived["connections_into"] = into
+    return into  # type: ignore[no-any-return]
+
+
+def _lane_chain(net: NetXml, lane: LaneRec, into: dict[str, list[ConnRec]] | None,
+                avoid_nodes: set[str], max_m: float) -> LaneChain:
+    """The road on from ``lane`` for up to ``max_m``: upstream (``into`` given: a lead-in, ending
+    with the lane) or downstream (``into`` None: a lead-out, starting with it).
+
+    Each step takes a car connection straight on (SUMO's ``s``, bending at most
+    :data:`LEAD_IN_MAX_BEND_RAD` between the two lanes; of several, the first lane id, for a
+    reproducible choice), through its internal lanes: a road an ego can drive at cruise speed and
+    keep to. It stops where there is no such lane, before an edge that starts (upstream) or ends
+    (downstream) at a node of the junction itself, and before an edge it has passed already.
+    """
+    upstream = into is not None
+    pieces: list[tuple[FloatArray, LaneRec | None]] = [(lane.shape, lane)]  # driving order
+    length = lane.length_m
+    seen = {lane.edge_id}
+    current = lane
+    while length < max_m:
+        if upstream:
+            assert into is not None
+            options = [(c, c.from_lane_id) for c in into.get(current.id, ())]
+        else:
+            options = [(c, c.to_lane_id) for c in net.connections_from_lane(current.id)
+                       if not c.to_edge.startswith(":")]
+        fits = []
+        for conn, other_id in options:
+            other = net.lanes.get(other_id)
+            edge = net.edges.get(other.edge_id) if other is not None else None
+            if other is None or edge is None or conn.dir != "s" or not _is_car(other) \
+                    or other.edge_id in seen or edge.function != "normal":
+                continue
+            if (edge.from_node if upstream else edge.to_node) in avoid_nodes:
+                continue
+            bend = (_heading_near_start(current.shape) - _heading_near_end(other.shape) if upstream
+                    else _heading_near_start(other.shape) - _heading_near_end(current.shape))
+            if abs(wrap_angle(bend)) <= LEAD_IN_MAX_BEND_RAD:
+                fits.append((other_id, conn, other))
+        if not fits:
+            break
+        _, conn, nxt = min(fits, key=lambda f: f[0])
+        via, _ = _via_pieces(net, conn)
+        if upstream:
+            pieces[:0] = [(nxt.shape, nxt), *((v, None) for v in via)]
+        else:
+            pieces += [*((v, None) for v in via), (nxt.shape, nxt)]
+        length += nxt.length_m + sum(polyline_length(v) for v in via)
+        seen.add(nxt.edge_id)
+        current = nxt
+    lanes = [rec for _, rec in pieces if rec is not None]
+    starts: list[float] = []  # where each normal lane begins along the joined centre line
+    joined: list[FloatArray] = []
+    for shape, rec in pieces:
+        if rec is not None:
+            # a gap between two pieces is bridged by a straight segment that counts before the lane
+            starts.append(polyline_length(np.vstack([*joined, shape[:1]])) if joined else 0.0)
+        joined.append(shape)
+    return LaneChain(
+        lane_id=lane.id,
+        edges=tuple(l.edge_id for l in lanes),
+        lane_indices=tuple(l.index for l in lanes),
+        lane_starts_m=tuple(starts),
+        centerline=drop_repeated_points(np.vstack(joined), tol_m=1e-3),
+    )
+
+
+def _chain_surface(net: NetXml, chain: LaneChain) -> Polygon:
+    return LineString(chain.centerline).buffer(net.lanes[chain.lane_id].width_m / 2.0, cap_style="flat")
 
 
 # --- assembly ---------------------------------------------------------------------------------
@@ -687,6 +802,16 @@ def read_junction(net_file: str | Path, junction_id: str | None = None) -> Junct
                            grid_size=UNION_GRID_M)
 
     leg_lanes = [l for e in (*incoming, *outgoing) for l in _lanes_of(net, e)]
+    into = _connections_into(net)
+    lead_ins = {l.id: _lane_chain(net, net.lanes[l.id], into, set(nodes), LEAD_IN_MAX_M)
+                for a in approaches for l in a.entrance_lanes}
+    lead_outs = {l.id: _lane_chain(net, l, None, set(nodes), LEAD_OUT_MAX_M) for l in exit_car_lanes}
+    # the road before the entrance lanes and after the exit lanes is road too: an ego may start on
+    # the first, and leaves over the second where an exit edge is a stub
+    chains = [c for c in (*lead_ins.values(), *lead_outs.values()) if len(c.edges) > 1]
+    if chains:
+        drivable = shapely.union_all([drivable, *(_chain_surface(net, c) for c in chains)],
+                                     grid_size=UNION_GRID_M)
     return Junction(
         id=node_id,
         tl_id=tl_id,
@@ -702,4 +827,6 @@ def read_junction(net_file: str | Path, junction_id: str | None = None) -> Junct
         bike_lanes=tuple(_to_lane(l) for l in leg_lanes if _is_bike_lane(l)),
         exit_edges=tuple(sorted(e.id for e in outgoing)),
         node_ids=nodes,
+        lead_ins=lead_ins,
+        lead_outs=lead_outs,
     )

@@ -79,6 +79,9 @@ class Connection:
     via_lane: str | None  # SUMO's internal lane through the junction, if any
     via_shape: FloatArray | None  # its centre line (SUMO's own path), for drawing and comparison
     tl_link_index: int | None  # index into the traffic light's state string
+    # the normal edges between the two nodes of a joined junction the movement passes (SUMO routes
+    # over them: from_lane's edge, these, to_lane's edge); empty at a one-node junction
+    inner_edges: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,6 +109,43 @@ class Approach:
         return tuple(c for c in self.connections if c.turn == turn)
 
 
+@dataclass(frozen=True, eq=False)
+class LaneChain:
+    """Consecutive lanes along one road: the road before an entrance lane's stop line (its
+    lead-in) or after an exit lane's start (its lead-out).
+
+    Real nets often end an edge a few metres from the junction (a node where a lane is added, a
+    previous junction, a 0.2 m stub an OSM import left): a vehicle starting 40 m out starts on the
+    edges before the entrance lane, and one leaving drives on over the edges after the exit lane.
+    ``edges`` and ``lane_indices`` say which normal lane each stretch is (what SUMO routes on), in
+    the driving direction; ``centerline`` runs through the internal lanes between them.
+    """
+
+    lane_id: str  # the entrance lane (a lead-in ends with it) or the exit lane (a lead-out starts with it)
+    edges: tuple[str, ...]  # normal edges in the driving direction
+    lane_indices: tuple[int, ...]  # SUMO lane index on each of those edges
+    lane_starts_m: tuple[float, ...]  # [m] arc length along ``centerline`` where each lane begins
+    centerline: FloatArray  # (N, 2) [m] in the driving direction
+
+    @property
+    def length_m(self) -> float:
+        return polyline_length(self.centerline)
+
+    def stretch_at(self, s_m: float) -> int:
+        """Index into ``edges`` of the lane at arc length ``s_m`` (the internal lanes between two
+        edges count with the edge before them: SUMO routes from that one)."""
+        k = 0
+        for i, start in enumerate(self.lane_starts_m):
+            if s_m >= start - 1e-9:
+                k = i
+        return k
+
+    @staticmethod
+    def of_lane(lane: Lane) -> LaneChain:
+        """The chain of one lane alone."""
+        return LaneChain(lane.id, (lane.edge_id,), (lane.index,), (0.0,), lane.centerline)
+
+
 @dataclass(frozen=True)
 class Crossing:
     """A pedestrian crossing over one leg."""
@@ -129,7 +169,7 @@ class Junction:
     polygon: Polygon  # SUMO's junction shape
     approaches: tuple[Approach, ...]
     lanes: dict[str, Lane]  # every car lane the approaches name (entrance and exit), by id
-    drivable_area: BaseGeometry  # junction polygon ∪ car lanes of the approaches and exits
+    drivable_area: BaseGeometry  # junction polygon ∪ car lanes of the approaches and exits, lead-ins, lead-outs
     crossings: tuple[Crossing, ...] = ()
     sidewalks: tuple[Lane, ...] = ()  # pedestrian lanes of the legs
     walking_areas: tuple[Polygon, ...] = ()
@@ -138,6 +178,21 @@ class Junction:
     # every SUMO node the junction spans: (id,) for one node, several when SUMO models one
     # signalized intersection as adjacent nodes sharing a traffic light (e.g. a divided road)
     node_ids: tuple[str, ...] = ()
+    # entrance lane id → the road before its stop line, ending with the lane (:class:`LaneChain`);
+    # exit lane id → the road after its start, starting with the lane. A lane missing here
+    # stands alone.
+    lead_ins: dict[str, LaneChain] = field(default_factory=dict)
+    lead_outs: dict[str, LaneChain] = field(default_factory=dict)
+
+    def lead_in(self, lane_id: str) -> LaneChain:
+        """The road towards an entrance lane's stop line (the lane alone when none is traced)."""
+        found = self.lead_ins.get(lane_id)
+        return found if found is not None else LaneChain.of_lane(self.lanes[lane_id])
+
+    def lead_out(self, lane_id: str) -> LaneChain:
+        """The road on from an exit lane's start (the lane alone when none is traced)."""
+        found = self.lead_outs.get(lane_id)
+        return found if found is not None else LaneChain.of_lane(self.lanes[lane_id])
 
     def approach(self, edge_id: str) -> Approach:
         for a in self.approaches:

@@ -15,12 +15,14 @@ Frame: SUMO's network coordinates [m], x east, y north (the ``netOffset`` alread
 
 from __future__ import annotations
 
+import gzip
+import io
 import math
 import xml.etree.ElementTree as ET
 from collections.abc import Container
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
@@ -138,6 +140,8 @@ class NetXml:
     # look-up indexes, filled by :meth:`build_indexes` once everything is read
     _conns_by_from_lane: dict[str, list[ConnRec]] = field(default_factory=dict, repr=False)
     _edges_by_node: dict[str, list[EdgeRec]] = field(default_factory=dict, repr=False)
+    # what readers derive from the whole net once and reuse while the parsed net is kept
+    derived: dict[str, Any] = field(default_factory=dict, repr=False)
 
     def build_indexes(self) -> None:
         """Index connections by their from-lane and normal edges by their end nodes."""
@@ -200,16 +204,34 @@ def _int_or_none(value: str | None) -> int | None:
 # --- reading ----------------------------------------------------------------------------------
 
 
-def _parse_tree(path: Path) -> ET.Element:
+def open_net(path: str | Path) -> IO[bytes]:
+    """A network file opened for reading: ``.gz`` files (``.net.xml.gz``, as SUMO writes them)
+    decompressed, at most :data:`MAX_NET_BYTES` either way (a compressed file is read whole, so
+    that a small file inflating without end is refused, not parsed)."""
+    path = Path(path)
     if not path.is_file():
         raise NetXmlError(f"network file not found: {path}")
     size = path.stat().st_size
     if size > MAX_NET_BYTES:
         raise NetXmlError(f"network file {path} is {size / 2**20:.0f} MiB, above the "
                           f"{MAX_NET_BYTES / 2**20:.0f} MiB limit")
+    if path.suffix != ".gz":
+        return path.open("rb")
+    try:
+        with gzip.open(path, "rb") as f:
+            data = f.read(MAX_NET_BYTES + 1)
+    except (OSError, EOFError) as exc:
+        raise NetXmlError(f"{path} is not a readable gzip file: {exc}") from exc
+    if len(data) > MAX_NET_BYTES:
+        raise NetXmlError(f"network file {path} inflates above the {MAX_NET_BYTES / 2**20:.0f} MiB limit")
+    return io.BytesIO(data)
+
+
+def _parse_tree(path: Path) -> ET.Element:
     parser: Any = _SAFE_ET if _SAFE_ET is not None else ET
     try:
-        root = parser.parse(str(path)).getroot()
+        with open_net(path) as f:
+            root = parser.parse(f).getroot()
     except ET.ParseError as exc:
         raise NetXmlError(f"{path} is not well-formed XML: {exc}") from exc
     except Exception as exc:  # defusedxml raises its own errors for forbidden constructs

@@ -28,7 +28,7 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from crossroads.constants import CROSS_GREEN_S, GREEN_S, YELLOW_S
+from crossroads.constants import ALL_RED_S, CROSS_GREEN_S, GREEN_S, YELLOW_S
 from crossroads.validation import FieldProblem
 
 TaskTurn = Literal["left", "straight", "right"]
@@ -166,6 +166,14 @@ class IntersectionSpec(_Frozen):
         description=(
             "Signal phases in order; None = SPEC §2 default: the ego's axis G60/Y3, then the other legs "
             "G37/Y3 (the ego's approach sees G60/Y3/R40)."
+        ),
+    )
+    kerb_radius_m: float | None = Field(
+        default=None, ge=1.0, le=30.0,
+        description=(
+            "[m] radius of the kerbs rounding the junction's corners (netconvert's node radius): "
+            "the larger, the further back the stop lines and the gentler the turns; None = "
+            "netconvert's own choice."
         ),
     )
     expected_candidates: dict[TaskTurn, Annotated[int, Field(ge=0)]] | None = Field(
@@ -324,7 +332,7 @@ class IntersectionSpec(_Frozen):
     @property
     def cycle_s(self) -> float:
         """[s] duration of one signal cycle."""
-        return sum(p.green_s + p.yellow_s for p in self.signal_phases)
+        return sum(p.green_s + p.yellow_s + ALL_RED_S for p in self.signal_phases)
 
 
 def relative_turn_deg(from_bearing_deg: float, to_bearing_deg: float) -> float:

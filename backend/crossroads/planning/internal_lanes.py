@@ -15,9 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from crossroads.constants import INTERNAL_LANE_OFFSET_WARN_M, RHO_BEZIER
+from crossroads.constants import INTERNAL_LANE_OFFSET_WARN_M
 from crossroads.geometry import FloatArray, distances_to_polyline, hausdorff_distance
-from crossroads.network.model import Approach, Connection, Junction
+from crossroads.network.model import TASKS, Approach, Connection, Junction
+from crossroads.planning.drivable import road_check
 from crossroads.planning.routes import CandidatePath, PlanningError, build_candidate
 
 
@@ -41,8 +42,15 @@ class InternalLaneOffset:
     problem: str | None = None
 
     @property
+    def is_task(self) -> bool:
+        """Whether the movement is one the ego may be given (left, straight, right; not a U-turn)."""
+        return self.turn in TASKS
+
+    @property
     def above_warning(self) -> bool:
-        return self.max_m is not None and self.max_m > INTERNAL_LANE_OFFSET_WARN_M
+        """Above :data:`INTERNAL_LANE_OFFSET_WARN_M`, on a movement that is a task: the ego never
+        drives a U-turn, so how far SUMO's lane of one runs from a Bezier is no concern of it."""
+        return self.is_task and self.max_m is not None and self.max_m > INTERNAL_LANE_OFFSET_WARN_M
 
     def to_json(self) -> dict[str, object]:
         return {"approach": self.approach, "from_lane": self.from_lane, "to_lane": self.to_lane,
@@ -53,7 +61,7 @@ class InternalLaneOffset:
 
 
 def movement_offset(junction: Junction, approach: str, conn: Connection,
-                    rho: float = RHO_BEZIER) -> InternalLaneOffset:
+                    rho: float | None = None) -> InternalLaneOffset:
     """One movement of ``approach``: its internal lane against its candidate path."""
     base = dict(approach=approach, from_lane=conn.from_lane, to_lane=conn.to_lane, turn=conn.turn,
                 via_lane=conn.via_lane)
@@ -67,7 +75,10 @@ def movement_offset(junction: Junction, approach: str, conn: Connection,
                                   problem=f"lane {missing[0]} is not a car lane of the junction's legs")
     try:
         path = build_candidate("check", conn.turn, approach, junction.lanes[conn.from_lane],
-                               junction.lanes[conn.to_lane], rho=rho)
+                               junction.lanes[conn.to_lane], rho=rho,
+                               lead_in=junction.lead_in(conn.from_lane).centerline,
+                               lead_out=junction.lead_out(conn.to_lane).centerline,
+                               road=road_check(junction, approach))
     except PlanningError as exc:
         return InternalLaneOffset(**base, max_m=None, mean_m=None, problem=f"no candidate path: {exc}")
     max_m, mean_m = path_offset(path, conn.via_shape)
@@ -83,7 +94,7 @@ def path_offset(path: CandidatePath, internal_lane: FloatArray) -> tuple[float, 
             float(np.mean(distances_to_polyline(curve, internal_lane))))
 
 
-def internal_lane_offsets(junction: Junction, rho: float = RHO_BEZIER, approach: Approach | None = None,
+def internal_lane_offsets(junction: Junction, rho: float | None = None, approach: Approach | None = None,
                           turn: str | None = None) -> list[InternalLaneOffset]:
     """Every car movement of ``junction`` (of one ``approach`` and one ``turn`` where given), in
     the junction's order."""
@@ -93,8 +104,9 @@ def internal_lane_offsets(junction: Junction, rho: float = RHO_BEZIER, approach:
 
 
 def worst_offset(offsets: list[InternalLaneOffset]) -> InternalLaneOffset | None:
-    """The movement whose internal lane runs furthest from its path (None if none compares)."""
-    measured = [o for o in offsets if o.max_m is not None]
+    """The task movement (no U-turn) whose internal lane runs furthest from its path (None if
+    none compares)."""
+    measured = [o for o in offsets if o.max_m is not None and o.is_task]
     return max(measured, key=lambda o: o.max_m or 0.0) if measured else None
 
 
@@ -105,7 +117,8 @@ def offset_warning(offsets: list[InternalLaneOffset], net_name: str) -> str | No
     worst = worst_offset(above)
     if worst is None:
         return None
-    return (f"{net_name}: SUMO's internal lanes of {len(above)} of {len(offsets)} car movements run "
+    tasks = sum(o.is_task for o in offsets)
+    return (f"{net_name}: SUMO's internal lanes of {len(above)} of {tasks} car movements run "
             f"more than {INTERNAL_LANE_OFFSET_WARN_M:g} m from the candidate paths, up to "
             f"{worst.max_m:.2f} m ({worst.from_lane} -> {worst.to_lane}, {worst.turn}); SUMO's "
             "vehicles and its junction model see the ego on those lanes, not where it drives. "

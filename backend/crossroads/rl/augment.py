@@ -1,29 +1,29 @@
 """Synthetic training states: a car standing on the ego's path ahead of it (a **(choice)**).
 
-Why (docs/measurements/why-the-models-crash.md §8): the models' collisions are mostly with a vehicle
+Why (docs/tried/training.md): the models' collisions are mostly with a vehicle
 that stands in front of the ego, in the pass mode — the vehicle ahead has stood less than the 3 s
 after which the light logic switches to the stop mode. The sampler sees such states only for those
-few seconds of each queue, and ``benchmarks/queue_response.py`` showed the shipped policies driving
+few seconds of each queue, and ``benchmarks/research/queue_response.py`` showed the shipped policies driving
 into a single car standing on an empty road from almost every speed and gap (APG 22, DPG 24 of 24). So a share of the sampled states also enters the
 buffer as a copy with one more participant: a car (SUMO's passenger car, 5.0 × 1.8 m) standing on
 the candidate path the state is recorded with, a gap drawn uniformly ahead of the ego — beyond
-the distance full braking needs from the ego's speed and acceleration (``stoppable``, session 7),
-or bumper to bumper (session 6). The differentiable model then scores every plan from that copy
+the distance full braking needs from the ego's speed and acceleration (``stoppable``),
+or bumper to bumper. The differentiable model then scores every plan from that copy
 against the standing car; nothing else of the state changes (the speed mode included, as the light
 logic would keep it for 3 s).
 
 Why beyond the braking distance: from 8 m/s full braking needs 14 m, so a bumper gap drawn in
 0.5–30 m made almost half of those copies collisions no plan avoids, where the least-bad plan
-swerves; run 7 (session 6), trained on them, stopped for the queue test's car only from 2–4 m/s and
+swerves; a run trained on them stopped for the queue test's car only from 2–4 m/s and
 tracked its straight paths worse. A copy that can be stopped for teaches braking alone.
 
 The car takes the farthest vehicle slot (a padded one when there is one) and the vehicle slots are
 sorted again by distance to the ego, as ``idc.state.select_others`` orders them. Pure numpy.
 
-Neighbours (``standing_car_neighbours``, session 8): a real queue is not one car on an empty road.
-Run 9 stopped for the queue test's lone car from every speed, yet with the scene's other vehicles
+Neighbours (``standing_car_neighbours``): a real queue is not one car on an empty road.
+A model trained on stoppable copies stopped for the queue test's lone car from every speed, yet with the scene's other vehicles
 in the slots its plan still met the car ahead in 22 of 29 pre-collision states (3 of 29 with the
-other slots padded: docs/measurements/why-the-models-crash.md §9). So a copy may also get standing
+other slots padded: docs/tried/training.md). So a copy may also get standing
 cars where a queue has them: one more behind the car ahead in the ego's own lane, and cars in the
 neighbouring lanes (a lane width to the left or right of the path, along it from beside the ego to
 past the car ahead). None of them is on the path, so the plan that brakes for the car ahead stays

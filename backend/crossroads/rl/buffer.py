@@ -12,7 +12,7 @@ plan from it (scored when it enters, rescored whenever a batch draws it). With `
 that share of every batch is drawn from the states scoring above ``danger_threshold``, the rest
 uniformly. Why: the states in the last seconds before a collision are a few per cent of what the
 sampler sees, and with uniform draws a run of 6 000 iterations did not learn to stop behind a
-standing car there, although its own model preferred braking (benchmarks/failure_modes.py); 300
+standing car there, although its own model preferred braking (benchmarks/research/failure_modes.py); 300
 policy steps on those states alone turned 20 collisions of 20 seeded runs into none. With
 ``danger_share = 0`` the draws are exactly the uniform ones of the paper.
 """

@@ -166,20 +166,24 @@ def distill_command(
 @app.command("onnx")
 def onnx_command(
     model: Annotated[Path, typer.Argument(metavar="MODEL.pt", help="a model file or checkpoint")],
-    out: Annotated[Path, typer.Option("-o", "--out", metavar="DIR", help="where policy.onnx and value.onnx go")],
+    out: Annotated[Path, typer.Option("-o", "--out", metavar="DIR",
+                                      help="where policy.onnx, value.onnx and MODEL.onnx (both in one) go")],
     samples: Annotated[int, typer.Option(help="IDC states (of seeded rule-driven left turns in traffic) the export is checked on")] = 512,
 ) -> None:
-    """Export the policy and value networks to ONNX and check them against torch (within 1e-5)."""
+    """Export the policy and value networks to ONNX and check them against torch (within 1e-5);
+    MODEL.onnx holds both, for ``--policy onnx:DIR/MODEL.onnx``."""
     from crossroads.rl.checkpoint import load_networks
-    from crossroads.rl.onnx_export import TOLERANCE, check_onnx, export_onnx, recorded_states
+    from crossroads.rl.onnx_export import TOLERANCE, check_onnx, export_onnx, export_policy_onnx, recorded_states
 
     try:
         policy_path, value_path = export_onnx(model, out)
+        combined = export_policy_onnx(model, out / f"{model.stem}.onnx")
     except (FileNotFoundError, ValueError) as exc:
         raise fail(str(exc)) from None
     states = recorded_states(samples, load_networks(model)[1].path_preview)
     action_err, value_err = check_onnx(model, policy_path, value_path, states)
-    typer.echo(f"{policy_path}\n{value_path}\nmax |onnx - torch| / max(1, |torch|) on {samples} states: "
+    typer.echo(f"{policy_path}\n{value_path}\n{combined} (--policy onnx:{combined})\n"
+               f"max |onnx - torch| / max(1, |torch|) on {samples} states: "
                f"action {action_err:.2e}, value {value_err:.2e}")
     if max(action_err, value_err) > TOLERANCE:
         raise fail(f"ONNX differs from torch by more than {TOLERANCE:g}", code=1)

@@ -74,12 +74,12 @@ class TrainConfig:
     nominal_floor: bool = True
     """(choice) APG: each safety constraint of the model is the worse of the adversary's prediction
     and the ξ ≡ 0 one (rl.model), so a half-trained adversary cannot make the scene look safer than
-    plain prediction does (measured: session 5's adversary sped up a standing queue ahead of the
+    plain prediction does (measured: a slowly learning adversary sped up a standing queue ahead of the
     ego, and its policy drove into such queues). False: the adversary's prediction alone."""
     braking_floor: bool = False
     """(choice) Each safety constraint of the model is also the worse of the prediction and one with
     every participant braking at ``constants.OTHER_DECEL_MPS2`` to a stand (rl.model), so a plan must
-    stay safe if the car ahead brakes. Measured (session 9, docs/measurements/model-optimum.md): the
+    stay safe if the car ahead brakes. Measured (docs/tried/training.md, "The model's own optimum"): the
     model's own receding-horizon optimum without it passed no more nominal left turns than the
     policy: at 8.3 m/s it braked too late for a queue whose last car was slowing from 1 m/s and hit it
     at 1.1 m/s; with the floor it braked in time. Off by default until a run has trained with it."""
@@ -90,7 +90,7 @@ class TrainConfig:
     ``stopping_intrusion``): a terminal constraint that the plan end where the ego can still stop clear. 0 (paper): none; 40 covers full
     braking from the pass profile's 8.33 m/s (the safety shield's horizon). Why: from 8.33 m/s full
     braking takes ~3.3 s, longer than T = 25 steps, and every trained policy without it ran into
-    standing queues at the pass profile's speed (docs/measurements/why-the-models-crash.md §9–§16)."""
+    standing queues at the pass profile's speed (docs/tried/training.md, "The stopping tail")."""
     sample_actions: bool = True
     """Training rollouts draw u ~ π_θ and ξ ~ π_φ by reparameterisation (the paper's u ~ π_θ(s));
     False uses the tanh-squashed means (deterministic rollouts)."""
@@ -101,8 +101,8 @@ class TrainConfig:
     state's by 1 / (1 + J(s)), so a relative improvement counts the same in every state; "sqrt":
     mean_s 2 √(1 + J(s)), weights 1 / √(1 + J(s)), between the two. Each state's best plan is the same under both; what differs is which states a
     network of finite size fits first. Under "mean" the few states with J in the hundreds (a car
-    close ahead) set the direction of every step: measured (session 11, 200 steps from run 5's
-    APG), the plan on an empty road at the reference speed kept braking at full jerk (J_track 40 →
+    close ahead) set the direction of every step: measured (200 steps from an APG trained under
+    "mean"), the plan on an empty road at the reference speed kept braking at full jerk (J_track 40 →
     30; the model's optimum 7) under "mean" and stopped braking within 50 steps under "log" (J_track
     8.1). The adversary keeps the paper's mean (it maximises J_π); logs report J_π as the mean."""
     pre_squash_bound: float = 2.5
@@ -113,7 +113,7 @@ class TrainConfig:
     """(choice) Weight of the saturation penalty added to the driving policy's loss (not the
     adversary's): weight × mean over the rollout's T states and the two outputs of max(0, |z| − bound)².
     Past the bound tanh's slope vanishes (1 − tanh²(3) = 0.01), so J_π barely moves a saturated output
-    any more. Measured (session 11): run 5's APG had |z| > 3 on Δa in 55 % of sampled states, and on an
+    any more. Measured: an APG trained without it had |z| > 3 on Δa in 55 % of sampled states, and on an
     empty road at the reference speed it braked at full jerk (J_track of its plan 40 against 7 for
     the model's optimum). 0 (paper): no penalty."""
 
@@ -124,10 +124,10 @@ class TrainConfig:
     paper's 108, ``idc.state``). The paper's x_track holds the nearest point only and the networks
     drop the ego's absolute pose (one network for six intersections), so without the preview a policy
     cannot steer into a turn before it has begun nor slow before the pass profile drops: measured
-    (session 12, docs/measurements/why-the-models-crash.md §14), run 16's policy began to steer only
+    (docs/tried/training.md, "Seeing the path ahead"), a policy without it began to steer only
     once inside the Bezier of c_three_lane left-2 and swung 1.42 m wide, where a sequence steering in
-    early stays within 0.18 m; run 17, 4 000 iterations from run 16 with the preview, stayed within
-    0.38 m there and reached the exit on all 38 paths (run 16: 33). A warm start from networks
+    early stays within 0.18 m; 4 000 iterations more with the preview (the shipped APG) stayed within
+    0.38 m there and reached the exit on all 38 paths (before: 33). A warm start from networks
     without it keeps their outputs (the new inputs' weights start at zero). False (paper): the 108
     values only."""
     lead_input: bool = False
@@ -135,15 +135,15 @@ class TrainConfig:
     state's, ``idc.state.lead_features``): the bumper gap to the nearest participant in a straight
     corridor ahead of the ego and how fast the ego closes on it. The 16 participant slots are sorted
     by distance, so the car ahead sits in a different slot from scene to scene among the oncoming
-    traffic; measured (session 16), 2 s before a collision with a vehicle ahead run 28's plan met it in
+    traffic; measured, 2 s before a collision with a vehicle ahead a trained policy's plan met it in
     3 of 31 states with the other slots padded and in 17 of 31 as seen. A warm start keeps the
     source's outputs (the new inputs' weights start at zero). False (paper): nothing added."""
     participant_encoder: int = 0
     """(choice) > 0: the driving policy and the value network read the 16 participants through one
     small network shared by every slot (this many units, 2 GELU layers), max-pooled over the slots
     (``rl.networks.ParticipantPooling``), instead of 96 slot-specific inputs; the adversary keeps them
-    flat (its ξ are per slot). Measured (session 17, ``benchmarks/clutter_probe.py``): 2 s before a
-    collision with a vehicle ahead, run 17's plan kept clear of that vehicle alone in the first slot in
+    flat (its ξ are per slot). Measured (``benchmarks/research/clutter_probe.py``): 2 s before a
+    collision with a vehicle ahead, the shipped APG's plan kept clear of that vehicle alone in the first slot in
     29 of 32 states and alone in the slot it had as seen in 4. Flat networks start such a run only
     through ``crossroads train distill``. 0 (paper): the flat 108 inputs."""
     hidden_layers: int = HIDDEN_LAYERS
@@ -197,11 +197,11 @@ class TrainConfig:
     empty_share: float = 0.1
     """(choice) Share of sampling episodes with no traffic at all (drawn after ``demand_scale``; 0
     draws nothing, as runs before it did). A factor drawn from ``demand_scale`` leaves a scene empty
-    only below ~0.03, and session 5's APG, never shown one, braked from 8.33 to 3.5 m/s on an empty
+    only below ~0.03, and an APG never shown one braked from 8.33 to 3.5 m/s on an empty
     straight road: the scene of the paper's tracking claim (``benchmarks/tracking.py``)."""
     standing_car_share: float = 0.25
     """(choice) Share of the sampled states that also enter the buffer as a copy with a car standing
-    on the path ahead of the ego (rl.augment): the collisions of sessions 2-6 were mostly with a
+    on the path ahead of the ego (rl.augment): the first trained models' collisions were mostly with a
     vehicle standing in front, which the world shows only briefly in the pass mode. 0: none (runs
     before the option)."""
     standing_car_gap_m: tuple[float, float] = (0.5, 30.0)
@@ -210,9 +210,9 @@ class TrainConfig:
     standing_car_stoppable: bool = True
     """(choice) Place that car the drawn gap *beyond* the distance full braking needs from the
     state's speed and acceleration (``sim.ego.braking_distance_m``), so every copy can be stopped
-    for and its gradient says "brake". False: the gap is bumper to bumper (session 6's run 7), where
+    for and its gradient says "brake". False: the gap is bumper to bumper, where
     at 8 m/s every gap under 14 m is a collision no plan avoids and the plan that hurts least
-    swerves — run 7 tracked its straight paths worse (0.044 → 0.29 m) and still hit the queue test's
+    swerves — a run trained so tracked its straight paths worse (0.044 → 0.29 m) and still hit the queue test's
     car from 6 and 8 m/s."""
     standing_car_neighbours: int = 0
     """(choice) Up to this many more standing cars around each standing-car copy's car (drawn
@@ -323,13 +323,13 @@ class TrainConfig:
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> TrainConfig:
         data = dict(data)
-        # written before the field existed (sessions 2-3): those runs added ξ_x, ξ_y at every step,
+        # written before the field existed: those runs added ξ_x, ξ_y at every step,
         # so a resumed old run keeps its model instead of switching under its own checkpoints
         data.setdefault("xi_positions", "step")
-        data.setdefault("nominal_floor", False)  # likewise (sessions 2-5)
-        data.setdefault("empty_share", 0.0)  # likewise (sessions 2-5): keeps their sampling draws
-        data.setdefault("standing_car_share", 0.0)  # likewise (sessions 2-6)
-        data.setdefault("standing_car_stoppable", False)  # likewise (session 6's bumper gaps)
+        data.setdefault("nominal_floor", False)  # likewise
+        data.setdefault("empty_share", 0.0)  # likewise: keeps their sampling draws
+        data.setdefault("standing_car_share", 0.0)  # likewise
+        data.setdefault("standing_car_stoppable", False)  # likewise (their bumper gaps)
         return apply_overrides(cls(), data)
 
 

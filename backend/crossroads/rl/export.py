@@ -29,8 +29,8 @@ from crossroads.rl.config import TrainConfig
 
 NETWORK_KEYS = ("policy", "value", "adversary")
 # Vector extensions, which decide much of torch's CPU speed. Named on the card because the same
-# 2-core run trained about 3x slower in session 5 (an AVX2-only EPYC) than in session 4, whose
-# host the card did not describe.
+# 2-core run trained about 3x slower on an AVX2-only EPYC than on the host before it, which the
+# card did not describe.
 VECTOR_FLAGS = ("avx2", "avx512f", "avx512_bf16", "amx_tile")
 
 

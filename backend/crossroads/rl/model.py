@@ -20,7 +20,7 @@ How ξ enters the horizon (``xi_positions``, **(choice)**, ``TrainConfig.xi_posi
 
 * ``"step"``: f_other exactly as printed, ξ added at every step, so ξ_x, ξ_y accumulate: 25 steps
   of ±0.8 m move a participant up to 20 m in any direction (an extra 8 m/s toward the ego).
-  Measured with session 3's APG (docs/measurements/apg-adversary.md): against its adversary the
+  Measured with an APG trained so (docs/tried/training.md, "The adversary"): against its adversary the
   median J_safe was 117 with the ego standing and 157-176 moving (0 with ξ ≡ 0), whether the ego
   kept to its plan, braked or accelerated, and the policy learned to flee (collisions at a median
   11.3 m/s).
@@ -34,7 +34,7 @@ The nominal floor (``nominal_floor``, **(choice)**, ``TrainConfig.nominal_floor`
 adversary, each safety constraint is taken as the worse (larger g) of the adversary's prediction
 and the plain ξ ≡ 0 prediction of the same participant. ξ ≡ 0 lies inside the ξ ranges, so a
 maximising adversary should never predict a milder scene than it; a half-trained one does.
-Measured on session 5's APG (docs/measurements/why-the-models-crash.md §8): its adversary had
+Measured on an APG trained without it (docs/tried/training.md): its adversary had
 learned ξ_v ≈ +0.22 m/s per step for nearly every participant — a standing queue ahead of the ego
 is then predicted to drive off at 2.2 m/s² — and 1 s before 32 of its 37 collisions in 50 seeded
 nominal left turns its mean ξ gave the policy's plan a lower J_safe than ξ ≡ 0 (median 3.9 against
@@ -45,8 +45,8 @@ The braking floor (``braking_floor``, **(choice)**, ``TrainConfig.braking_floor`
 each safety constraint is also taken as the worse of the above and a prediction in which every
 participant brakes at ``constants.OTHER_DECEL_MPS2`` to a stand (``sim.other.other_braking_step``,
 the safety shield's second future). f_other keeps each speed, so over 2.5 s a car slowing into the
-end of a queue is predicted to roll on: session 9's receding-horizon optimum of the model
-(benchmarks/probing.py) drove at 8.3 m/s into such a car (1 m/s and slowing, 14 m ahead) and
+end of a queue is predicted to roll on: the receding-horizon optimum of the model
+(benchmarks/research/probing.py) drove at 8.3 m/s into such a car (1 m/s and slowing, 14 m ahead) and
 braked only when its constraint bound, too late; with the floor it braked in time and passed.
 
 The stopping tail (``stopping_tail``, **(choice, not the paper's)**, ``TrainConfig.stopping_tail``,
@@ -58,7 +58,7 @@ rest point plus the safety margin (:func:`stopping_intrusion`). Why: from 8.33 m
 (jerk-limited to −3 m/s²) takes ~3.3 s, longer than the 2.5 s horizon, so a plan can be free of
 penalties over T steps and still end where no braking avoids the car standing ahead — the receding
 horizon is not recursively feasible, and the trained policies drove into standing queues at the pass
-profile's speed (docs/measurements/why-the-models-crash.md §9–§16). It does not depend on ξ and adds
+profile's speed (docs/tried/training.md, "The stopping tail"). It does not depend on ξ and adds
 no utility (J_track is unchanged).
 """
 
@@ -193,8 +193,8 @@ STOPPING_HEADING_COS = math.cos(math.radians(45.0))
 """(choice) Only participants heading within ±45° of the ego's count in the stopping tail: the cars and
 cyclists it follows. A crossing participant or a pedestrian (braking to a stand in the prediction)
 could otherwise be escaped by driving faster — past it by the end of the horizon, it lies behind the
-ego and out of the corridor — and two runs trained so (session 15, runs 22–23, 500 iterations) sped
-up on an empty road from run 17's 8.8–9.2 to 9.6–10.4 m/s; the horizon's own constraints keep those."""
+ego and out of the corridor — and two runs trained so (500 iterations each) sped up on an empty
+road from the shipped APG's 8.8–9.2 to 9.6–10.4 m/s; the horizon's own constraints keep those."""
 
 
 def stopping_intrusion(ego: Tensor, rest: Tensor, others: Tensor) -> Tensor:

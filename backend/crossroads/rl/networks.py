@@ -91,8 +91,8 @@ class ParticipantPooling(nn.Module):
 
     Each slot's 6 ego-frame inputs, its kind as a one-hot and the ego's speed go through one shared
     2-layer GELU network of ``units``; the elementwise max over the 16 slots is the pooled vector.
-    Why (docs/measurements/why-the-models-crash.md §18): the flat 5 × 256 networks read each slot
-    with its own weights, and run 17's policy, 2 s before a collision with a vehicle ahead, planned
+    Why (docs/tried/training.md, "Pooled participants"): the flat 5 × 256 networks read each slot
+    with its own weights, and the shipped APG's policy, 2 s before a collision with a vehicle ahead, planned
     to keep clear of that vehicle alone in the first slot in 29 of 32 states but only in 4 of 32
     alone in the slot it had as seen. The max over a shared encoding cannot depend on the slot, and
     one participant's encoding not on the others. The ego's speed is in every slot's input so that

@@ -4,6 +4,8 @@ The exported graphs include the state normalisation (``network_input``), so an O
 them the raw 108-dimensional IDC state, batched: ``policy.onnx``: state (n, 108) → action (n, 2)
 [Δδ rad/s, Δa m/s³]; ``value.onnx``: state (n, 108) → value (n,). Networks trained with the path
 preview (``TrainConfig.path_preview``) take the 120-value preview states instead (``idc.state``).
+:func:`export_policy_onnx` writes both in one graph (outputs ``action`` and ``value``), the file
+``--policy onnx:PATH.onnx`` drives with (:mod:`crossroads.evaluation.onnx_policy`).
 """
 
 from __future__ import annotations
@@ -35,15 +37,29 @@ class _MeanAction(nn.Module):
         return self.policy.mean_action(state)
 
 
-def _export(module: nn.Module, path: Path, output: str, width: int) -> None:
+class _PolicyAndValue(nn.Module):
+    """The mean action and the path value of the same states, one graph with two outputs."""
+
+    def __init__(self, policy: nn.Module, value: nn.Module) -> None:
+        super().__init__()
+        self.policy, self.value = policy, value
+
+    def forward(self, state: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.policy.mean_action(state), self.value(state)
+
+
+def _export(module: nn.Module, path: Path, output: str | tuple[str, ...], width: int) -> None:
     example = torch.zeros(2, width)
+    outputs = (output,) if isinstance(output, str) else output
     # (choice) the TorchScript exporter: plain MLPs need nothing more, and it needs no onnxscript;
     # torch warns that it is deprecated in favour of the torch.export-based one
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
+        # the tracer's notes on the state layout checks (constant shapes: true for a fixed width)
+        warnings.simplefilter("ignore", torch.jit.TracerWarning)
         torch.onnx.export(module.eval(), (example,), str(path), dynamo=False, opset_version=OPSET,
-                          input_names=["state"], output_names=[output],
-                          dynamic_axes={"state": {0: "batch"}, output: {0: "batch"}})
+                          input_names=["state"], output_names=list(outputs),
+                          dynamic_axes={"state": {0: "batch"}, **{o: {0: "batch"} for o in outputs}})
 
 
 def export_onnx(model: Path, out_dir: Path) -> tuple[Path, Path]:
@@ -57,6 +73,15 @@ def export_onnx(model: Path, out_dir: Path) -> tuple[Path, Path]:
     return policy_path, value_path
 
 
+def export_policy_onnx(model: Path, path: Path) -> Path:
+    """Write the policy and value networks of ``model`` as one ONNX file at ``path``: state (n, width)
+    → ``action`` (n, 2), ``value`` (n,); ``--policy onnx:PATH`` drives with it."""
+    nets, _ = load_networks(model)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _export(_PolicyAndValue(nets.policy, nets.value), path, ("action", "value"), state_width(model))
+    return path
+
+
 def state_width(model: Path) -> int:
     """Values per state the networks of ``model`` read: 108, or 120 with the path preview."""
     _, config = load_networks(model)
@@ -68,7 +93,7 @@ def recorded_states(samples: int, preview: bool, seed: int = 0) -> np.ndarray:
     at each step of seeded nominal left turns on c_three_lane driven by the rule controller (traffic
     included). Not random vectors: N(0, 1) ones put cars inside each other with negative sizes, where
     float32 rounding makes ONNX and torch differ by 1e-5 to 3e-5 of the output; on IDC states they
-    agree within 4e-6 (measured on session 12's shipped models)."""
+    agree within 4e-6 (measured on the shipped models)."""
     from crossroads.idc.rule_based import RuleBasedController
     from crossroads.idc.state import build_states, select_others
     from crossroads.network import catalogue

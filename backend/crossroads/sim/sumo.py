@@ -1,6 +1,6 @@
 """The one door to SUMO: a :class:`SumoSession` over libsumo.
 
-This is the ONLY module of Crossroads that imports ``libsumo`` (DESIGN.md). Everything else talks
+This is the ONLY module of Crossroads that imports ``libsumo`` (docs/guide/architecture.md). Everything else talks
 to SUMO through the session's methods, which take and return our conventions:
 
 * positions [m] in SUMO's network frame; for vehicles the **footprint centre** (SUMO reports the
@@ -56,6 +56,25 @@ KIND_CODE: dict[str, int] = {kind: code for code, kind in enumerate(KINDS)}
 _KIND_NAMES = np.array(KINDS, dtype="<U10")  # KIND_CODE inverted, for column lookups
 
 EGO_TYPE_ID = "ego"
+SUMO_EGO_TYPE_ID = "ego_sumo_driven"  # the ego's footprint, driven by SUMO's models (policy "sumo")
+LANE_CHANGE_MODE_DEFAULT = 1621  # SUMO's default lane-change mode (strategic, cooperative, ...)
+
+
+@dataclass(frozen=True)
+class SumoDriver:
+    """The parameters SUMO's own driver gets when it drives the ego (policy ``sumo``).
+
+    A Krauss driver without dawdling (``sigma`` 0) at the ego's own speed limit, otherwise as the
+    world's cars (acceleration, braking, gap, and the impatience with which a driver waiting to
+    turn across traffic accepts a gap that makes a foe brake): the baseline of what the world
+    lets through."""
+
+    max_speed_mps: float  # [m/s] the ego's speed limit
+    accel_mps2: float = 2.6  # [m/s²] as the world's cars
+    decel_mps2: float = 4.5  # [m/s²] as the world's cars
+    sigma: float = 0.0  # Krauss imperfection
+    min_gap_m: float = 2.5  # [m] standstill gap to the leader
+    impatience: float = 0.5  # as the world's cars (sim/traffic.py IMPATIENCE)
 
 # SUMO speed-mode bits (sumo.dlr.de/docs/TraCI/Change_Vehicle_State.html#speed_mode_0xb3).
 SPEED_MODE_DEFAULT = 31  # all checks on
@@ -592,30 +611,58 @@ class SumoSession:
         depart_speed_mps: float = 0.0,
         length_m: float = EGO_LENGTH_M,
         width_m: float = EGO_WIDTH_M,
+        sumo_driver: SumoDriver | None = None,
     ) -> None:
         """Insert the ego as a SUMO vehicle of type "ego" with its real footprint.
 
         It departs "now" (inserted in the next step); place it exactly with :meth:`move_ego`
-        right after adding. SUMO never drives it: its speed mode and lane-change mode are 0 and
-        every step's pose comes from :meth:`move_ego`. ``depart_pos_m`` is the front bumper's
-        position along the lane [m].
+        right after adding. ``depart_pos_m`` is the front bumper's position along the lane [m].
+
+        Without ``sumo_driver`` SUMO never drives it: its speed mode and lane-change mode are 0
+        and every step's pose comes from :meth:`move_ego`. With one, SUMO's own driver models
+        drive it (car following, junction and lane-change models, all checks on) with that
+        driver's parameters, once :meth:`release_ego` hands it over after the exact placement.
         """
         vt = libsumo.vehicletype
-        if EGO_TYPE_ID not in vt.getIDList():
-            vt.copy("DEFAULT_VEHTYPE", EGO_TYPE_ID)
-            vt.setVehicleClass(EGO_TYPE_ID, "passenger")
-        vt.setLength(EGO_TYPE_ID, length_m)
-        vt.setWidth(EGO_TYPE_ID, width_m)
-        vt.setColor(EGO_TYPE_ID, (255, 0, 0, 255))
+        type_id = EGO_TYPE_ID if sumo_driver is None else SUMO_EGO_TYPE_ID
+        if type_id not in vt.getIDList():
+            vt.copy("DEFAULT_VEHTYPE", type_id)
+            vt.setVehicleClass(type_id, "passenger")
+        vt.setLength(type_id, length_m)
+        vt.setWidth(type_id, width_m)
+        vt.setColor(type_id, (255, 0, 0, 255))
+        if sumo_driver is not None:
+            vt.setAccel(type_id, sumo_driver.accel_mps2)
+            vt.setDecel(type_id, sumo_driver.decel_mps2)
+            vt.setMaxSpeed(type_id, sumo_driver.max_speed_mps)
+            vt.setImperfection(type_id, sumo_driver.sigma)
+            vt.setMinGap(type_id, sumo_driver.min_gap_m)
+            vt.setImpatience(type_id, sumo_driver.impatience)
+            vt.setSpeedFactor(type_id, 1.0)
+            vt.setSpeedDeviation(type_id, 0.0)
         route_id = f"__route_{ego_id}"
         libsumo.route.add(route_id, list(route_edges))
         libsumo.vehicle.add(
-            ego_id, route_id, typeID=EGO_TYPE_ID, depart="now", departLane=str(depart_lane),
+            ego_id, route_id, typeID=type_id, depart="now", departLane=str(depart_lane),
             departPos=f"{depart_pos_m:g}", departSpeed=f"{depart_speed_mps:g}",
         )
+        # a SUMO-driven ego too: placed exactly by move_ego first, no checks until release_ego
         libsumo.vehicle.setSpeedMode(ego_id, SPEED_MODE_IGNORE_ALL)
         libsumo.vehicle.setLaneChangeMode(ego_id, 0)
         self._egos[ego_id] = length_m
+
+    @_sumo_errors
+    def release_ego(self, ego_id: str) -> None:
+        """Hand an ego added with a ``sumo_driver`` to SUMO's driver models from now on: all
+        speed checks on, SUMO's default lane changing, no commanded speed."""
+        libsumo.vehicle.setSpeed(ego_id, -1.0)
+        libsumo.vehicle.setSpeedMode(ego_id, SPEED_MODE_DEFAULT)
+        libsumo.vehicle.setLaneChangeMode(ego_id, LANE_CHANGE_MODE_DEFAULT)
+
+    @_sumo_errors
+    def has_vehicle(self, vehicle_id: str) -> bool:
+        """Whether SUMO has ``vehicle_id`` on the road now (it leaves at its route's end)."""
+        return vehicle_id in libsumo.vehicle.getIDList()
 
     @_sumo_errors
     def move_ego(
@@ -645,7 +692,7 @@ class SumoSession:
         pose is back within ``EGO_SNAP_RELEASE_M`` of that limit (:meth:`_ego_keep_route`). Why:
         the ego drove off SUMO's road for up to 10 s on the nominal left turn (its path swerving
         around a queued car, or cutting a turn inside SUMO's internal lane), and two followers
-        drove into it (seeds 2090914255, 1809821748 at 60 s; docs/measurements/ego-in-sumo.md).
+        drove into it (seeds 2090914255, 1809821748 at 60 s; docs/tried/world.md).
         """
         length = self._egos.get(ego_id, EGO_LENGTH_M)
         half = 0.5 * length
@@ -730,6 +777,17 @@ class SumoSession:
         libsumo.vehicle.setLaneChangeMode(vehicle_id, mode)
 
     @_sumo_errors
+    def lane_change_mode(self, vehicle_id: str) -> int:
+        """The vehicle's lane-change mode now (:data:`LANE_CHANGE_MODE_DEFAULT` unless changed)."""
+        return libsumo.vehicle.getLaneChangeMode(vehicle_id)
+
+    @_sumo_errors
+    def pending_vehicle_ids(self) -> tuple[str, ...]:
+        """Vehicles whose departure time has come but which SUMO has not inserted yet (no room on
+        their lane); :meth:`remove` takes one out of that queue."""
+        return tuple(libsumo.simulation.getPendingVehicles())
+
+    @_sumo_errors
     def vehicle_route(self, vehicle_id: str) -> tuple[str, ...]:
         return tuple(libsumo.vehicle.getRoute(vehicle_id))
 
@@ -761,6 +819,32 @@ class SumoSession:
         """Collisions SUMO detected in the last step: (collider, victim, type)."""
         return [(c.collider, c.victim, c.type) for c in libsumo.simulation.getCollisions()]
 
+    @_sumo_errors
+    def standing_on(self, vehicle_lanes: tuple[str, ...],
+                    person_lanes: tuple[str, ...]) -> list[tuple[str, float, str]]:
+        """(id, how long it has stood [s], lane) of every participant but the ego now standing
+        (SUMO's waiting time: below 0.1 m/s since it last moved): vehicles on a lane whose id
+        starts with one of ``vehicle_lanes``, persons on one that starts with ``person_lanes``."""
+        out: list[tuple[str, float, str]] = []
+        for domain, ids, prefixes in ((libsumo.vehicle, self._vehicles, vehicle_lanes),
+                                      (libsumo.person, self._persons, person_lanes)):
+            if not prefixes:
+                continue
+            for pid in ids:
+                waited = domain.getWaitingTime(pid)
+                if waited > 0.0:
+                    lane = domain.getLaneID(pid)
+                    if lane.startswith(prefixes):
+                        out.append((pid, waited, lane))
+        return out
+
+    @_sumo_errors
+    def standing_s(self, participant_id: str) -> float:
+        """How long a vehicle or person has stood [s] (0 while it moves)."""
+        if participant_id in self._persons:
+            return libsumo.person.getWaitingTime(participant_id)
+        return libsumo.vehicle.getWaitingTime(participant_id)
+
     # --- traffic lights --------------------------------------------------------------------
 
     @_sumo_errors
@@ -780,6 +864,16 @@ class SumoSession:
     def tl_time_to_switch_s(self, tl_id: str) -> float:
         """Seconds until the current phase ends."""
         return libsumo.trafficlight.getNextSwitch(tl_id) - libsumo.simulation.getTime()
+
+    @_sumo_errors
+    def tl_program(self, tl_id: str) -> str:
+        """The id of the program the light runs now (of several a net may hold)."""
+        return libsumo.trafficlight.getProgram(tl_id)
+
+    @_sumo_errors
+    def set_tl_program(self, tl_id: str, program_id: str) -> None:
+        """Switch the light to another of its programs (it starts that program's phase 0)."""
+        libsumo.trafficlight.setProgram(tl_id, program_id)
 
     @_sumo_errors
     def set_tl_phase(self, tl_id: str, phase_index: int) -> None:

@@ -5,13 +5,20 @@ time is drawn here from the scenario seed (a Poisson process: exponential gaps w
 demand is fully determined by the seed and never depends on SUMO's RNG. Departures start at t = 0
 so that the world's warm-up fills the intersection.
 
-* Vehicles: on each entrance lane, its own rate split evenly over the lane's turns (left,
-  straight, right; U-turns are left out); ``departLane`` is that lane.
+* Vehicles: per leg, ``n_lanes × rate`` split over its turns by :attr:`TrafficDemand.turn_shares`
+  (left 10 %, straight 70 %, right 20 % by default; U-turns are left out), each departing on a lane
+  that serves its turn, the lanes' loads levelled; or, with ``turn_shares=None``, each entrance
+  lane its own rate split evenly over that lane's turns. ``departLane`` is that lane.
 * Cyclists: per leg, ``n_lanes × rate`` on the bike lane if the leg has one, else on the rightmost
-  lane, to the exits the leg's car connections reach.
+  lane that admits bicycles (a leg with none gets no cyclists, said in the plan's ``notes``), to
+  the exits the leg's car connections reach whose edge admits bicycles — straight on and right by
+  default (:attr:`TrafficDemand.cyclist_left_turns`).
 * Pedestrians: per leg, ``n_lanes × rate`` walking from the leg's sidewalk near the junction to a
-  sidewalk of another leg; SUMO's router takes them over the crossings. Nets without sidewalks or
-  crossings (cologne1) get no pedestrians, and :class:`DemandPlan` ``notes`` says so.
+  sidewalk of another leg that the junction's walking areas and crossings connect it to
+  (:func:`walkable_pairs`, read from the net's pedestrian connections; SUMO's router takes them
+  over those crossings, and refuses a walk between sidewalks they do not join: "No connection
+  found"). Nets without sidewalks or crossings (cologne1) get no pedestrians, nor a leg whose
+  sidewalk reaches no other; :class:`DemandPlan` ``notes`` says so.
 
 Trips (``from``/``to`` edges) rather than fixed routes: inside clustered junctions the exit edge
 need not follow the entrance edge directly, and SUMO's router finds the path through.
@@ -22,6 +29,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -33,6 +41,7 @@ from crossroads.constants import (
     VEHICLES_PER_HOUR_PER_LANE,
 )
 from crossroads.network.model import TASKS, Approach, Junction
+from crossroads.network.netxml import internal_edge_owner, read_net_xml
 
 log = logging.getLogger(__name__)
 
@@ -61,6 +70,8 @@ VTYPES_XML = f"""    <vType id="{CAR_TYPE}" vClass="passenger" length="4.5" widt
            speedFactor="normc(1.0,0.1,0.6,1.3)" color="blue"/>
 """
 
+DEFAULT_TURN_SHARES = (0.1, 0.7, 0.2)  # (left, straight, right) of an approach's vehicles: TrafficDemand
+
 PED_START_BEFORE_JUNCTION_M = (3.0, 25.0)  # [m] pedestrians start this far from the junction
 PED_END_AFTER_JUNCTION_M = (3.0, 25.0)  # [m] and walk this far past it on the target sidewalk
 
@@ -72,8 +83,30 @@ class TrafficDemand:
     vehicles_per_hour: float = VEHICLES_PER_HOUR_PER_LANE  # [veh/h] per entrance lane
     cyclists_per_hour: float = CYCLISTS_PER_HOUR_PER_LANE  # [bic/h] per entrance lane
     pedestrians_per_hour: float = PEDESTRIANS_PER_HOUR_PER_LANE  # [ped/h] per entrance lane
+    # (choice) Whether cyclists turn left. SUMO models a cyclist's left turn from the rightmost
+    # lane as a car's, across every lane of its leg into the left-turners' path; at the paper's
+    # densities these cyclists and the left-turners waited on each other inside the junction: on
+    # c_three_lane 34-48 % of the cyclists got through (measured with sim/flow.py), and the
+    # queues behind stood for minutes. Without left turns (their share rides straight on or
+    # right instead, as many cities route cyclists' left turns indirectly) 90-102 % did. The
+    # cyclist count stays the paper's.
+    cyclist_left_turns: bool = False
+    # (choice) Vehicles' turns: the approach's rate (per entrance lane × its entrance lanes)
+    # split over its turns by these shares (left, straight, right), each turn over its lanes
+    # levelling their loads (lane_split); None: each entrance lane its own rate, split evenly
+    # over that lane's turns. With None a left-only lane carries 400 left-turners an hour, while
+    # permissive left turns (SPEC §2) across 600 oncoming vehicles an hour let some 70-100 an
+    # hour through (the gaps and the two that clear in each yellow): on c_three_lane 5-10 % of
+    # them crossed and the queues grew without end (sim/flow.py). Urban left-turn shares of
+    # about a tenth are what such a junction can serve.
+    turn_shares: tuple[float, float, float] | None = DEFAULT_TURN_SHARES
 
     def __post_init__(self) -> None:
+        if self.turn_shares is not None and (
+                len(self.turn_shares) != 3 or not all(math.isfinite(x) and x >= 0.0 for x in self.turn_shares)
+                or sum(self.turn_shares) <= 0.0):
+            raise ValueError(f"TrafficDemand.turn_shares must be 3 shares >= 0 (left, straight, right) "
+                             f"with a positive sum, got {self.turn_shares}")
         for name in ("vehicles_per_hour", "cyclists_per_hour", "pedestrians_per_hour"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
@@ -131,8 +164,131 @@ def _exits_by_turn(approach: Approach, lane_id: str | None = None) -> dict[str, 
     return out
 
 
+def _vehicles_per_lane(rng: np.random.Generator, a: Approach, rate: float,
+                       duration_s: float) -> list[Departure]:
+    """Every entrance lane its own ``rate``, split evenly over the lane's turns."""
+    deps = []
+    for lane in a.entrance_lanes:
+        turns = _exits_by_turn(a, lane.id)
+        if not turns:
+            continue
+        names = sorted(turns)
+        for t in poisson_times(rng, rate, duration_s):
+            turn = names[int(rng.integers(len(names)))]
+            deps.append(Departure("", "vehicle", float(t), a.incoming_edge, turns[turn],
+                                  depart_lane=lane.index, turn=turn))
+    return deps
+
+
+def lane_split(a: Approach, volumes: dict[str, float]) -> dict[str, dict[int, float]]:
+    """How each turn's volume [veh/h] spreads over the entrance lanes that serve it, levelling
+    the lanes' loads: turns with fewer lanes first, each poured into its least-loaded lanes
+    (water filling). Returns turn → {lane index: volume}."""
+    lanes_of = {turn: [ln.index for ln in a.entrance_lanes if turn in _exits_by_turn(a, ln.id)]
+                for turn in volumes}
+    load = {ln.index: 0.0 for ln in a.entrance_lanes}
+    split: dict[str, dict[int, float]] = {}
+    for turn in sorted(volumes, key=lambda t: (len(lanes_of[t]), t)):
+        lanes, left = lanes_of[turn], volumes[turn]
+        split[turn] = dict.fromkeys(lanes, 0.0)
+        while left > 1e-9 and lanes:
+            low = min(load[i] for i in lanes)
+            lowest = [i for i in lanes if load[i] - low < 1e-9]
+            higher = [load[i] for i in lanes if load[i] - low >= 1e-9]
+            room = (min(higher) - low) * len(lowest) if higher else left
+            pour = min(left, room)
+            for i in lowest:
+                load[i] += pour / len(lowest)
+                split[turn][i] += pour / len(lowest)
+            left -= pour
+    return split
+
+
+def _vehicles_by_turn_shares(rng: np.random.Generator, a: Approach, rate: float,
+                             shares: tuple[float, float, float], duration_s: float) -> list[Departure]:
+    """The approach's ``rate × entrance lanes`` split over its turns by ``shares`` (left,
+    straight, right; renormalised over the turns it has), each turn over its lanes by
+    :func:`lane_split`."""
+    exits = _exits_by_turn(a)
+    weights = {turn: share for turn, share in zip(("left", "straight", "right"), shares)
+               if turn in exits and share > 0.0}
+    total = sum(weights.values())
+    approach_rate = rate * len(a.entrance_lanes)
+    if not weights or total <= 0.0 or approach_rate <= 0.0:
+        return []
+    split = lane_split(a, {turn: approach_rate * w / total for turn, w in weights.items()})
+    cells = [(turn, lane, v) for turn, lanes in sorted(split.items()) for lane, v in sorted(lanes.items())]
+    p = np.array([v for _, _, v in cells]) / approach_rate
+    deps = []
+    for t in poisson_times(rng, approach_rate, duration_s):
+        turn, lane, _ = cells[int(rng.choice(len(cells), p=p))]
+        deps.append(Departure("", "vehicle", float(t), a.incoming_edge, exits[turn],
+                              depart_lane=lane, turn=turn))
+    return deps
+
+
+def _admits_bicycles(junction: Junction, edge_id: str) -> bool:
+    """Whether an edge has a lane bicycles may use (an edge the junction does not describe: yes,
+    SUMO's router decides)."""
+    if any(b.edge_id == edge_id for b in junction.bike_lanes):
+        return True
+    lanes = [ln for ln in junction.lanes.values() if ln.edge_id == edge_id]
+    return not lanes or any("bicycle" in ln.allowed_classes for ln in lanes)
+
+
+def _cyclist_exits(junction: Junction, approach: Approach, *, left_turns: bool) -> dict[str, str]:
+    """Turn → exit edge for the cyclists of an approach: exits that admit bicycles, left turns
+    only when asked for (:attr:`TrafficDemand.cyclist_left_turns`)."""
+    return {turn: edge for turn, edge in _exits_by_turn(approach).items()
+            if (left_turns or turn != "left") and _admits_bicycles(junction, edge)}
+
+
 def _has_pedestrian_network(junction: Junction) -> bool:
     return bool(junction.crossings) and bool(junction.sidewalks)
+
+
+_WALKING_FUNCTIONS = frozenset({"walkingarea", "crossing"})
+
+
+@lru_cache(maxsize=16)
+def _walking_groups(net_file: Path, mtime_ns: int, node_ids: tuple[str, ...]) -> dict[str, int]:
+    """Edge id → group number: edges in one group are joined on foot over the walking areas and
+    crossings of ``node_ids`` (kept per net file and its modification time: a city net takes
+    seconds to parse, and every episode draws its demand anew).
+
+    SUMO writes a walking area's ties as connections: a sidewalk ending there (``from`` the
+    sidewalk ``to`` the walking area), one starting there, a crossing leaving or reaching it.
+    People walk either way, so each connection joins its two edges, both ways."""
+    net = read_net_xml(net_file)
+    nodes = set(node_ids)
+    parent: dict[str, str] = {}
+
+    def root(edge: str) -> str:
+        while parent.setdefault(edge, edge) != edge:
+            parent[edge] = parent[parent[edge]]
+            edge = parent[edge]
+        return edge
+
+    def on_foot_here(edge_id: str) -> bool:
+        edge = net.edges.get(edge_id)
+        return (edge is not None and edge.function in _WALKING_FUNCTIONS
+                and internal_edge_owner(edge_id, net.nodes) in nodes)
+
+    for c in net.connections:
+        if on_foot_here(c.from_edge) or on_foot_here(c.to_edge):
+            parent[root(c.from_edge)] = root(c.to_edge)
+    groups: dict[str, int] = {}
+    return {edge: groups.setdefault(root(edge), len(groups)) for edge in list(parent)}
+
+
+def walkable_pairs(junction: Junction, from_edges: list[str], to_edges: list[str]) -> dict[str, list[str]]:
+    """For each of ``from_edges``, those of ``to_edges`` (another leg's) its sidewalk reaches over
+    the junction's walking areas and crossings: where SUMO's router finds a walk, read from the
+    net file without starting SUMO."""
+    path = Path(junction.net_file).resolve()
+    groups = _walking_groups(path, path.stat().st_mtime_ns, tuple(sorted(junction.node_ids or (junction.id,))))
+    return {e: [t for t in to_edges if e in groups and groups[e] == groups.get(t)]
+            for e in from_edges}
 
 
 def build_plan(junction: Junction, demand: TrafficDemand, *, seed: int,
@@ -143,25 +299,23 @@ def build_plan(junction: Junction, demand: TrafficDemand, *, seed: int,
     notes: list[str] = []
 
     for a in junction.approaches:
-        # --- vehicles: per entrance lane, its rate split over the lane's turns
-        for lane in a.entrance_lanes:
-            turns = _exits_by_turn(a, lane.id)
-            if not turns:
-                continue
-            names = sorted(turns)
-            for t in poisson_times(rng, demand.vehicles_per_hour, duration_s):
-                turn = names[int(rng.integers(len(names)))]
-                deps.append(Departure("", "vehicle", float(t), a.incoming_edge, turns[turn],
-                                      depart_lane=lane.index, turn=turn))
-        # --- cyclists: per leg, on its bike lane or its rightmost lane
-        exits = _exits_by_turn(a)
-        if exits and a.entrance_lanes:
+        if demand.turn_shares is None:
+            deps += _vehicles_per_lane(rng, a, demand.vehicles_per_hour, duration_s)
+        else:
+            deps += _vehicles_by_turn_shares(rng, a, demand.vehicles_per_hour, demand.turn_shares,
+                                             duration_s)
+        # --- cyclists: per leg, on its bike lane or its rightmost lane that admits them
+        exits = _cyclist_exits(junction, a, left_turns=demand.cyclist_left_turns)
+        if exits and a.entrance_lanes and demand.cyclists_per_hour > 0:
             bike = next((b for b in junction.bike_lanes if b.edge_id == a.incoming_edge), None)
             if bike is not None:
-                lane_index = bike.index
+                lane_index: int | None = bike.index
             else:  # the rightmost car lane that admits bicycles (index 0 may be a sidewalk)
                 lane_index = next((ln.index for ln in a.entrance_lanes
-                                   if "bicycle" in ln.allowed_classes), a.entrance_lanes[0].index)
+                                   if "bicycle" in ln.allowed_classes), None)
+            if lane_index is None:
+                notes.append(f"no cyclists from {a.incoming_edge!r}: none of its lanes admits bicycles")
+                continue
             names = sorted(exits)
             rate = demand.cyclists_per_hour * len(a.entrance_lanes)
             for t in poisson_times(rng, rate, duration_s):
@@ -181,10 +335,13 @@ def build_plan(junction: Junction, demand: TrafficDemand, *, seed: int,
             legs = [a for a in junction.approaches if a.incoming_edge in walks]
             targets = [a.outgoing_edge for a in junction.approaches
                        if a.outgoing_edge is not None and a.outgoing_edge in walks]
+            reach = walkable_pairs(junction, [a.incoming_edge for a in legs], targets)
+            stranded: list[str] = []
             for a in legs:
                 start = walks[a.incoming_edge]
-                choices = [e for e in targets if e != a.outgoing_edge]
+                choices = [e for e in reach[a.incoming_edge] if e != a.outgoing_edge]
                 if not choices:
+                    stranded.append(a.incoming_edge)
                     continue
                 rate = demand.pedestrians_per_hour * max(1, len(a.entrance_lanes))
                 for t in poisson_times(rng, rate, duration_s):
@@ -199,6 +356,10 @@ def build_plan(junction: Junction, demand: TrafficDemand, *, seed: int,
                     ))
             if not legs:
                 notes.append(f"no pedestrians: no approach of {junction.id!r} has a sidewalk")
+            elif stranded:
+                notes.append(f"no pedestrians from {', '.join(map(repr, stranded))}: the walking areas "
+                             f"and crossings of junction {junction.id!r} join its sidewalk to no "
+                             "other leg's")
 
     deps.sort(key=lambda d: (d.depart_s, d.kind, d.from_edge, d.to_edge))
     counters = {"vehicle": 0, "cyclist": 0, "pedestrian": 0}

@@ -17,30 +17,41 @@ import math
 import shutil
 import tempfile
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal, NamedTuple
 
 import numpy as np
-from shapely.geometry import Polygon
+from shapely.geometry import LineString, Polygon
 from shapely.ops import unary_union
 
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, SIM_STEP_S
-from crossroads.geometry import FloatArray, point_at, polyline_length
+from crossroads.geometry import FloatArray
 from crossroads.network.junction import read_junction
 from crossroads.network.model import Approach, Junction, Lane
 from crossroads.perception.noise import add_noise_unchecked
 from crossroads.perception.sensors import DEFAULT_SENSORS, covered
 from crossroads.planning import CandidatePath, plan_candidates
 from crossroads.sim.abnormal import AbnormalTraffic
+from crossroads.sim.blocking import BlockedBy, held_whole_episode, nearest_barrier
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
+from crossroads.sim.gridlock import GridlockBreaker
 from crossroads.sim.other import route_curvature
 from crossroads.sim.region import Region
-from crossroads.sim.signals import Light, apply_start, live_light, read_program
-from crossroads.sim.sumo import KIND_CODE, Snapshot, SumoSession
-from crossroads.sim.traffic import write_routes
+from crossroads.sim.signals import (
+    Light,
+    apply_start,
+    live_light,
+    movement_link,
+    offset_for,
+    phase_for_light,
+    read_program,
+)
+from crossroads.sim.start import place_ego
+from crossroads.sim.sumo import KIND_CODE, Snapshot, SumoDriver, SumoSession
+from crossroads.sim.traffic import DemandPlan, build_plan, write_plan
 
 EGO_ID = "ego"
 OutcomeKind = Literal["passed", "collision", "red_light", "off_road", "timeout"]
@@ -54,6 +65,20 @@ SPAWN_CLEAR_AHEAD_S = 3.0  # [s] ...and those within this much driving time ahea
 # the episode (60 s nominal left, seed 1705482282): inserted 1.2 m ahead of it, the ego left SUMO's
 # driver no time to brake
 SPAWN_CLEAR_BEHIND_S = 1.0
+# The start zone: for the ego's first START_ZONE_S nobody enters the stretch of road around its
+# start, neither inserted by SUMO nor changing lanes into it; a driver who has just appeared can
+# avoid neither. Why: on bs3d's short approach edge SUMO inserted a car at the edge's start 2.8 m
+# (centres) behind the ego at 7.6 m/s, a collision 0.1 s into the episode, and on other nets a car
+# in the next lane changed into the gap the clearing (SPAWN_*) had just opened. The zone runs along
+# the ego's lead-in from START_ZONE_S of driving at its lane's speed limit (plus SPAWN_CLEARANCE_M)
+# behind the ego to the cleared box ahead of it, START_ZONE_HALF_WIDTH_LANES lanes to either side
+# of its lane's centre. For START_ZONE_S: (1) no vehicle or cyclist departs on an edge that starts
+# inside the zone (their departures are left out of the episode's demand), and any still waiting to
+# depart there at the ego's entry is removed; (2) every vehicle and cyclist in the zone, or close
+# enough behind to reach it at the speed limit, has lane changing off (SUMO lane-change mode 0),
+# and its own mode back after. (A vehicle further back cannot reach the zone in that time.)
+START_ZONE_S = 2.0
+START_ZONE_HALF_WIDTH_LANES = 2.5  # the ego's lane and two on each side
 FRONT_CORRIDOR_HALF_WIDTH_M = 1.75  # [m] "in front of the ego": within half a lane of its axis
 FRONT_LOOKAHEAD_M = 30.0  # [m] how far ahead the congestion check looks for a front vehicle
 FRONT_HEADING_TOLERANCE_RAD = math.pi / 4  # [rad] a front vehicle heads within this of the ego
@@ -136,6 +161,9 @@ class Outcome:
     time_s: float  # [s] since the ego entered
     detail: str = ""  # e.g. which participant was hit
     other_kind: str | None = None  # collision: "vehicle" | "cyclist" | "pedestrian"
+    # timeout: the participant that barred every candidate path the whole episode, if one did
+    # (the world's failure, not the driver's: sim/blocking.py)
+    blocked_by: BlockedBy | None = None
 
 
 class World:
@@ -148,22 +176,34 @@ class World:
                                    else self.junction.default_approach())
         self.candidates: tuple[CandidatePath, ...] = tuple(
             plan_candidates(self.junction, config.task, approach=self.approach, rho=config.rho))
-        self.program = read_program(config.net_file, self.junction.tl_id)
+        self.program = read_program(config.net_file, self.junction.tl_id,
+                                    config.signal_start.program_id)
         self.start_lane: Lane = self.junction.lanes[
             config.ego_start.entrance_lane or self.candidates[0].entrance_lane]
         if self.start_lane.id not in {lane.id for lane in self.approach.entrance_lanes}:
             raise ValueError(f"ego.entrance_lane {self.start_lane.id!r} is not an entrance lane of "
                              f"approach {self.approach.id!r}")
         self._link_index = self._signal_link()
+        # (phase index, elapsed [s]) of the light at the ego's entry, and where and on which route
+        # it enters: public, so that an export of the scene (evaluation/sumo_bundle.py) matches
+        self.start_phase = self._signal_phase()
+        self.placement = place_ego(self.junction, self.start_lane.id,
+                                   config.ego_start.distance_to_stop_line_m, self._route_on())
         self._stop_mid = self.approach.stop_line.mean(axis=0)
         self._forward = np.array([math.cos(self.approach.heading_rad),
                                   math.sin(self.approach.heading_rad)])
         # the judge's point-in-polygon tests, with a memo of the grid cells away from the edges
         self._road = Region(self.junction.drivable_area.buffer(OFF_ROAD_TOLERANCE_M))
         exit_edges = {self.junction.lanes[c.exit_lane].edge_id for c in self.candidates}
+        # the target road: the exit lanes' edges and, where an exit edge is a stub, the road on
+        # from each candidate's exit lane (its lead-out)
         self._target_exit = Region(unary_union([
-            lane.polygon() for lane in self.junction.lanes.values() if lane.edge_id in exit_edges]))
+            lane.polygon() for lane in self.junction.lanes.values() if lane.edge_id in exit_edges] + [
+            LineString(self.junction.lead_out(c.exit_lane).centerline).buffer(
+                self.junction.lanes[c.exit_lane].width_m / 2.0, cap_style="flat")
+            for c in self.candidates if len(self.junction.lead_out(c.exit_lane).edges) > 1]))
         self._inside = Region(self.junction.polygon)
+        self._own_approach = Region(unary_union([lane.polygon() for lane in self.approach.entrance_lanes]))
         self._crossing_areas = tuple(c.polygon for c in self.junction.crossings)  # Observation.crossings
         # lane centre lines by SUMO lane id, internal lanes through the junction included: the
         # turning radius R of f_other comes from the lane a participant is on and where on it
@@ -179,38 +219,56 @@ class World:
         self.session = session or SumoSession()
         self._work_dir = Path(tempfile.mkdtemp(prefix="crossroads-world-"))
         self.episode_seed: int | None = None
+        self.sumo_driver: SumoDriver | None = None  # set by reset(): SUMO drives the ego
+        self.events: list[dict[str, object]] = []  # the world's own events of the episode
 
     # --- set-up ----------------------------------------------------------------------------
 
     def _signal_link(self) -> int:
         """The tl link index of the ego's movement: its start lane into the task's target."""
-        for c in self.approach.connections_for(self.config.task):
-            if c.from_lane == self.start_lane.id and c.tl_link_index is not None:
-                return c.tl_link_index
-        for c in self.approach.connections_for(self.config.task):
-            if c.tl_link_index is not None:
-                return c.tl_link_index
-        raise ValueError(f"no signalised {self.config.task} movement from {self.approach.id!r}")
+        return movement_link(self.approach, self.config.task, self.start_lane.id)
+
+    def _signal_phase(self) -> tuple[int, float]:
+        """(phase, time spent in it [s]) to start the light in: the scenario's exact phase, or
+        where the ego's own link shows the colour asked for (``sim.signals.phase_for_light``)."""
+        start = self.config.signal_start
+        if start.phase_index is not None:
+            offset_for(self.program, 0.0, start.phase_index, start.elapsed_s)  # raises when out of range
+            return start.phase_index, start.elapsed_s
+        return phase_for_light(self.program, self._link_index, start.ego_light, start.elapsed_s)
+
+    def _route_on(self) -> tuple[str, ...]:
+        """The edges the ego's SUMO route takes after its entrance edge: the inner edges of a
+        joined junction its movement passes, then the first candidate's exit edge and the road on
+        from it (its lead-out: SUMO would take the ego off at the end of a stub exit edge)."""
+        target = self.candidates[0].exit_lane
+        moves = [c for c in self.approach.connections_for(self.config.task)
+                 if c.from_lane == self.start_lane.id]
+        move = next((c for c in moves if c.to_lane == target), moves[0] if moves else None)
+        inner = move.inner_edges if move is not None else ()
+        return (*inner, *self.junction.lead_out(target).edges)
 
     def _start_pose(self) -> tuple[float, float, float]:
-        """Ego centre and heading: ``distance_to_stop_line_m`` of its front bumper before the line."""
-        lane = self.start_lane
-        back = self.config.ego_start.distance_to_stop_line_m + EGO_LENGTH_M / 2.0
-        s = max(0.0, polyline_length(lane.centerline) - back)
-        x, y = point_at(lane.centerline, s)
-        ahead = point_at(lane.centerline, min(s + 1.0, lane.length_m))
-        heading = math.atan2(ahead[1] - y, ahead[0] - x)
-        return float(x), float(y), heading
+        """Ego centre and heading: ``distance_to_stop_line_m`` of its front bumper before the line,
+        along its lane and, where that is short, the road before it (``sim.start``)."""
+        p = self.placement
+        return p.x, p.y, p.heading_rad
 
-    def reset(self, seed: int) -> Observation:
-        """Start a fresh episode: SUMO with its warmed-up traffic, then the ego at its start."""
+    def reset(self, seed: int, *, sumo_driver: SumoDriver | None = None) -> Observation:
+        """Start a fresh episode: SUMO with its warmed-up traffic, then the ego at its start.
+
+        With ``sumo_driver``, SUMO's own driver models drive the ego (policy ``sumo``): advance
+        the episode with ``step(None)``. The same seed gives the same traffic either way.
+        """
         cfg = self.config
         self.episode_seed = seed
+        self.sumo_driver = sumo_driver
+        self.events = []
         traffic_seq, sumo_seq, abnormal_seq, noise_seq = np.random.SeedSequence(seed).spawn(4)
-        routes = write_routes(
-            self.junction, cfg.demand, self._work_dir / "traffic.rou.xml",
-            seed=int(traffic_seq.generate_state(1)[0]),
-            duration_s=cfg.warmup_s + cfg.timeout_s + ROUTE_MARGIN_S)
+        self.demand_plan = self._without_start_zone_departures(build_plan(
+            self.junction, cfg.demand, seed=int(traffic_seq.generate_state(1)[0]),
+            duration_s=cfg.warmup_s + cfg.timeout_s + ROUTE_MARGIN_S))
+        routes = write_plan(self.demand_plan, self._work_dir / "traffic.rou.xml")
         self.session.close()
         self.session.start(cfg.net_file, [routes], seed=int(sumo_seq.generate_state(1)[0] % 2**31),
                            step_length_s=SIM_STEP_S)
@@ -218,20 +276,23 @@ class World:
                                         int(abnormal_seq.generate_state(1)[0]))
         self.abnormal.apply_speed_limits(self.session)
         self._noise_rng = np.random.default_rng(noise_seq)
+        self._gridlocks = GridlockBreaker(self.junction, cfg.gridlock_stand_s)
         for _ in range(int(round(cfg.warmup_s / SIM_STEP_S))):
             self.session.step()
             self.abnormal.update(self.session)
-        self.signal_offset_s = apply_start(self.session, self.program,
-                                           cfg.signal_start.phase_index, cfg.signal_start.elapsed_s)
+            self._gridlocks.update(self.session)
+        self.signal_offset_s = apply_start(self.session, self.program, *self.start_phase)
         x, y, heading = self._start_pose()
+        self._hold_start_zone(x, y, heading, cfg.ego_start.speed_mps)  # first: _clear_spawn steps SUMO
         self._clear_spawn(x, y, heading, cfg.ego_start.speed_mps)
-        exit_edge = self.junction.lanes[self.candidates[0].exit_lane].edge_id
-        self.session.add_ego(EGO_ID, [self.approach.incoming_edge, exit_edge],
-                             depart_lane=self.start_lane.index)
+        self.session.add_ego(EGO_ID, list(self.placement.route_edges),
+                             depart_lane=self.placement.depart_lane, sumo_driver=sumo_driver)
         speed = cfg.ego_start.speed_mps
         self.ego = np.array([x, y, speed, 0.0, heading, 0.0, 0.0, 0.0])
         self.session.move_ego(EGO_ID, x, y, heading, speed)
         self.session.step()
+        if sumo_driver is not None:
+            self.session.release_ego(EGO_ID)
         self.time_s = 0.0
         self._front_stopped: tuple[str, float] | None = None  # (id, since [s])
         self._stop_line_crossed_s: float | None = None
@@ -259,25 +320,101 @@ class World:
         if close.any():
             self.session.step()
 
+    def _start_zone_reach_m(self) -> tuple[float, float]:
+        """[m] How far the start zone reaches behind and ahead of the ego's centre (START_ZONE_S)."""
+        behind = SPAWN_CLEARANCE_M + START_ZONE_S * self.start_lane.speed_limit_mps
+        ahead = SPAWN_CLEARANCE_M + SPAWN_CLEAR_AHEAD_S * self.config.ego_start.speed_mps
+        return behind, ahead
+
+    def start_zone_edges(self) -> frozenset[str]:
+        """The edges of the ego's lead-in that start inside its start zone: a vehicle SUMO
+        inserts at the start of one of these appears within START_ZONE_S of the ego."""
+        lead = self.junction.lead_in(self.start_lane.id)
+        centre = max(0.0, lead.length_m - self.config.ego_start.distance_to_stop_line_m - EGO_LENGTH_M / 2.0)
+        behind, ahead = self._start_zone_reach_m()
+        return frozenset(edge for edge, start in zip(lead.edges, lead.lane_starts_m)
+                         if centre - behind <= start <= centre + ahead)
+
+    def _without_start_zone_departures(self, plan: DemandPlan) -> DemandPlan:
+        """``plan`` less the vehicles and cyclists that would depart in the start zone while it is
+        held: on a :meth:`start_zone_edges` edge from the ego's entry (the end of the warm-up)
+        until START_ZONE_S after it (and the steps the entry itself takes)."""
+        edges = self.start_zone_edges()
+        begin = self.config.warmup_s - 1e-9
+        end = self.config.warmup_s + START_ZONE_S + 3 * SIM_STEP_S
+        kept = tuple(d for d in plan.departures
+                     if d.kind == "pedestrian" or d.from_edge not in edges or not begin <= d.depart_s <= end)
+        return plan if len(kept) == len(plan.departures) else replace(plan, departures=kept)
+
+    def _hold_start_zone(self, x: float, y: float, heading: float, speed: float) -> None:
+        """Keep the start zone (START_ZONE_S) free as the ego enters at ``x``, ``y``: remove those
+        still waiting to depart on its edges, and turn lane changing off for every vehicle and
+        cyclist in it or able to reach it in time (each one's own mode is restored by
+        :meth:`_release_start_zone`)."""
+        edges = self.start_zone_edges()
+        waiting = {d.id for d in self.demand_plan.departures if d.from_edge in edges}
+        for vid in self.session.pending_vehicle_ids():
+            if vid in waiting:
+                self.session.remove(vid)
+        snap = self.session.snapshot()
+        dx, dy = snap.x - x, snap.y - y
+        along = dx * math.cos(heading) + dy * math.sin(heading)
+        across = -dx * math.sin(heading) + dy * math.cos(heading)
+        behind, ahead = self._start_zone_reach_m()
+        behind = np.maximum(behind, SPAWN_CLEARANCE_M + START_ZONE_S * snap.speed)
+        near = ((along > -behind) & (along < ahead)
+                & (np.abs(across) < START_ZONE_HALF_WIDTH_LANES * self.start_lane.width_m)
+                & (np.cos(snap.heading - heading) > _SAME_WAY_COS) & (snap.kind_code != _PEDESTRIAN))
+        self._start_zone_modes: dict[str, int] = {}
+        for vid in map(str, snap.ids[near]):
+            self._start_zone_modes[vid] = self.session.lane_change_mode(vid)
+            self.session.set_lane_change_mode(vid, 0)
+
+    def _release_start_zone(self) -> None:
+        """START_ZONE_S after entry: every vehicle held by :meth:`_hold_start_zone` that is still
+        on the road changes lanes as it did before."""
+        alive = set(self.session.vehicle_ids)
+        for vid, mode in self._start_zone_modes.items():
+            if vid in alive:
+                self.session.set_lane_change_mode(vid, mode)
+        self._start_zone_modes = {}
+
     # --- the loop --------------------------------------------------------------------------
 
-    def step(self, action: FloatArray) -> tuple[Observation, Outcome | None]:
+    def step(self, action: FloatArray | None) -> tuple[Observation, Outcome | None]:
         """Apply ``action`` = [Δδ, Δa] for 0.1 s; returns the new observation and the outcome
-        (None while the episode goes on)."""
+        (None while the episode goes on). ``None`` when SUMO drives the ego (``reset`` with a
+        ``sumo_driver``): SUMO moves it, and its pose is read back."""
         if self.outcome is not None:
             raise RuntimeError("the episode has ended; call reset(seed) first")
+        if (action is None) != (self.sumo_driver is not None):
+            raise ValueError("step(None) exactly when SUMO drives the ego (reset with sumo_driver)")
         previous_distance = self._last_distance_m  # of the observation the action answered
-        self.ego = ego_step(self.ego, np.asarray(action, dtype=np.float64))  # clips the action
-        x, y, vx, _, heading = self.ego[:5].tolist()
-        self.session.move_ego(EGO_ID, x, y, heading, vx)
+        if action is not None:
+            self.ego = ego_step(self.ego, np.asarray(action, dtype=np.float64))  # clips the action
+            x, y, vx, _, heading = self.ego[:5].tolist()
+            self.session.move_ego(EGO_ID, x, y, heading, vx)
         self.session.step()
+        if action is None:
+            self._read_sumo_ego()
         self._abnormal_ids = self.abnormal.update(self.session)
         self.time_s += SIM_STEP_S
+        if self._start_zone_modes and self.time_s >= START_ZONE_S - 1e-9:
+            self._release_start_zone()
+        self.events.extend(r.to_event(self.time_s) for r in self._gridlocks.update(self.session))
         snap = self.session.snapshot()
         around = self._around(snap)
         obs = self._observe(snap, around)
         self.outcome = self._judge(snap, obs, previous_distance, around)
         return obs, self.outcome
+
+    def _read_sumo_ego(self) -> None:
+        """The ego's state from SUMO, which drove it this step (policy ``sumo``)."""
+        if not self.session.has_vehicle(EGO_ID):  # SUMO let it arrive before the judge saw it pass
+            raise RuntimeError("SUMO's driver left the network before the episode was judged")
+        x, y, heading, speed = self.session.vehicle_pose(EGO_ID)
+        accel = (speed - float(self.ego[2])) / SIM_STEP_S
+        self.ego = np.array([x, y, speed, 0.0, heading, 0.0, 0.0, accel])
 
     def _around(self, snap: Snapshot) -> _Around:
         """The participants relative to the ego's centre now (see :class:`_Around`)."""
@@ -389,16 +526,42 @@ class World:
         xs, ys = corner_coordinates(x, y, heading, EGO_LENGTH_M, EGO_WIDTH_M)
         if not self._road.contains_all(xs, ys):
             return Outcome("off_road", self.time_s, "left the drivable area")
-        if (self._stop_line_crossed_s is not None
-                and self._target_exit.contains(x, y)
-                and not self._inside.contains_any(xs, ys)):
-            return Outcome("passed", self.time_s)
+        if self._stop_line_crossed_s is not None and not self._inside.contains_any(xs, ys):
+            if self._target_exit.contains(x, y):
+                return Outcome("passed", self.time_s)
+            if self._own_approach.contains(x, y):  # just over its line, not yet in the junction
+                return self._timeout_or_none(snap, obs)
+            # out of the junction, but not onto its task's exit: a wrong exit (judged now, before
+            # the ego drives on far from its SUMO route, which SUMO cannot follow)
+            return Outcome("off_road", self.time_s, "left the junction by an exit other than its task's")
+        return self._timeout_or_none(snap, obs)
+
+    def _timeout_or_none(self, snap: Snapshot, obs: Observation) -> Outcome | None:
+        """A timeout once the episode has lasted ``timeout_s`` (with what blocked it), else None."""
         if self.time_s >= self.config.timeout_s - 1e-9:
             detail = f"still driving after {self.config.timeout_s:g} s"
             if obs.front_vehicle_stopped_s > 0.0:  # blocked, not hesitant: say so in the run's record
                 detail += f"; the vehicle ahead had stood {obs.front_vehicle_stopped_s:.1f} s"
-            return Outcome("timeout", self.time_s, detail)
+            blocked = self._blocked_by(snap)
+            if blocked is not None:
+                detail += (f"; blocked by the world: {blocked.kind} {blocked.participant} stood "
+                           f"{blocked.stood_s:.1f} s across every candidate path")
+            return Outcome("timeout", self.time_s, detail, blocked_by=blocked)
         return None
+
+    def _blocked_by(self, snap: Snapshot) -> BlockedBy | None:
+        """The participant barring every candidate path that has stood the whole episode, if any."""
+        bodies = [(k, float(snap.x[k]), float(snap.y[k]), float(snap.width[k]))
+                  for k in range(len(snap)) if snap.kind_code[k] != _PEDESTRIAN]
+        found = nearest_barrier((float(self.ego[0]), float(self.ego[1])), bodies, self.candidates)
+        if found is None:
+            return None
+        row, ahead = found
+        pid = str(snap.ids[row])
+        stood = self.session.standing_s(pid)
+        if not held_whole_episode(stood, self.time_s):
+            return None
+        return BlockedBy(pid, str(snap.kind[row]), round(stood, 1), round(ahead, 2))
 
     @property
     def stop_line_crossed_s(self) -> float | None:

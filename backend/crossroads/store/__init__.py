@@ -6,5 +6,6 @@
 """
 
 from crossroads.store.db import Store, StoreError, open_store
+from crossroads.store import search_tables  # noqa: F401  (its tables join the metadata)
 
 __all__ = ["Store", "StoreError", "open_store"]

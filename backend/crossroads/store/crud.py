@@ -21,6 +21,7 @@ from sqlalchemy.orm import Session, joinedload
 from crossroads.store.tables import (
     BATCH_STATUSES,
     EPISODE_OUTCOMES,
+    MAX_ROW_ID,
     TRACE_MODES,
     Batch,
     Episode,
@@ -35,6 +36,12 @@ UNFINISHED_STATUSES = tuple(s for s in BATCH_STATUSES if s not in FINISHED_STATU
 HASH_CHUNK = 1 << 20
 
 
+def in_id_range(value: int | None, *, low: int = 1) -> bool:
+    """Whether ``value`` fits the store's INTEGER id columns (a larger one would make the database
+    driver fail instead of finding nothing)."""
+    return value is not None and low <= value <= MAX_ROW_ID
+
+
 def file_sha256(path: str | Path) -> str:
     digest = hashlib.sha256()
     with Path(path).open("rb") as f:
@@ -45,30 +52,40 @@ def file_sha256(path: str | Path) -> str:
 
 @dataclass(frozen=True)
 class PolicyIdentity:
-    """Who a policy reference is: ``builtin:rule`` or the sha256 of a checkpoint's bytes."""
+    """Who a policy reference is: ``builtin:rule``, the sha256 of a checkpoint's or an ONNX file's
+    bytes, or for a Python plugin the sha256 of its reference and its module's source file."""
 
     name: str
-    ref: str
-    kind: str  # builtin | checkpoint
+    ref: str  # the canonical reference (crossroads.evaluation.policies.PolicyRef as text)
+    kind: str  # builtin | checkpoint | onnx | plugin
     file_hash: str
     card: dict[str, Any] | None
 
 
 def policy_identity(ref: str) -> PolicyIdentity:
-    """The identity of ``ref`` (a built-in name or a checkpoint path; its card is read from a
-    ``<stem>.card.json`` or ``<stem>.json`` next to it when there is one). A checkpoint with the
-    safety shield (``+shield``) is a policy of its own: name and hash carry the suffix."""
-    from crossroads.evaluation.policies import BUILTIN_POLICIES, SHIELD_SUFFIX, PolicyError, read_model_card, split_shield
+    """The identity of ``ref`` (parsed by :func:`~crossroads.evaluation.policies.parse_policy`). A
+    file's card is read from a ``<stem>.card.json`` or ``<stem>.json`` next to it when there is one.
+    A checkpoint or ONNX file with the safety shield (``+shield``) is a policy of its own: name and
+    hash carry the suffix. A plugin is named by its reference and hashed with its module's source
+    file (an edited plugin is a new policy; the modules it imports are not hashed)."""
+    from crossroads.evaluation.policies import SHIELD_SUFFIX, PolicyError, parse_policy, read_model_card
 
-    if ref in BUILTIN_POLICIES:
-        return PolicyIdentity(ref, ref, "builtin", f"builtin:{ref}", None)
-    file_ref, shield = split_shield(ref)
-    path = Path(file_ref)
+    parsed = parse_policy(ref)
+    text = str(parsed)
+    if parsed.kind in ("rule", "sumo"):
+        return PolicyIdentity(text, text, "builtin", f"builtin:{text}", None)
+    if parsed.kind == "plugin":
+        from crossroads.evaluation.plugin_policy import plugin_source
+
+        digest = hashlib.sha256(f"{parsed.target}\n{file_sha256(plugin_source(parsed.target))}".encode())
+        return PolicyIdentity(parsed.name, text, "plugin", f"py:sha256:{digest.hexdigest()}", None)
+    path = Path(parsed.target)
     if not path.is_file():
-        raise PolicyError(f"policy checkpoint {file_ref!r} does not exist")
+        what = "checkpoint" if parsed.kind == "checkpoint" else "ONNX file"
+        raise PolicyError(f"policy {what} {parsed.target!r} does not exist")
     card = read_model_card(path)
-    suffix = SHIELD_SUFFIX if shield else ""
-    return PolicyIdentity(path.stem + suffix, ref, "checkpoint", f"sha256:{file_sha256(path)}{suffix}", card)
+    suffix = SHIELD_SUFFIX if parsed.shield else ""
+    return PolicyIdentity(parsed.name, text, parsed.kind, f"sha256:{file_sha256(path)}{suffix}", card)
 
 
 def _get_or_create(session: Session, model: type[Any], unique: Mapping[str, Any],
@@ -104,7 +121,26 @@ def get_or_create_scenario(*, session: Session, spec: Any) -> Scenario:
 
 
 def get_scenario(*, session: Session, scenario_id: int) -> Scenario | None:
-    return session.get(Scenario, scenario_id)
+    return session.get(Scenario, scenario_id) if in_id_range(scenario_id) else None
+
+
+def list_scenarios(*, session: Session, limit: int = 100, offset: int = 0) -> list[Scenario]:
+    """Scenarios, oldest first."""
+    return list(session.scalars(select(Scenario).order_by(Scenario.id).limit(limit).offset(offset)))
+
+
+def count_scenarios(*, session: Session) -> int:
+    return int(session.scalar(select(func.count()).select_from(Scenario)) or 0)
+
+
+def batch_counts(*, session: Session, scenario_ids: Iterable[int]) -> dict[int, int]:
+    """How many batches ran each of ``scenario_ids`` (absent: none)."""
+    ids = list(scenario_ids)
+    if not ids:
+        return {}
+    stmt = (select(Batch.scenario_id, func.count()).where(Batch.scenario_id.in_(ids))
+            .group_by(Batch.scenario_id))
+    return {int(sid): int(n) for sid, n in session.execute(stmt)}
 
 
 def scenario_spec(*, scenario: Scenario) -> Any:
@@ -125,7 +161,7 @@ def get_or_create_policy(*, session: Session, ref: str, card: Mapping[str, Any] 
 
 
 def get_policy(*, session: Session, policy_id: int) -> Policy | None:
-    return session.get(Policy, policy_id)
+    return session.get(Policy, policy_id) if in_id_range(policy_id) else None
 
 
 # --- batches ------------------------------------------------------------------------------------
@@ -136,9 +172,13 @@ def create_batch(*, session: Session, scenario: Scenario, policy: Policy, runs: 
                  workers: int | None = None, executor: str | None = None,
                  warnings: Sequence[str] = ()) -> Batch:
     """A queued batch of ``runs`` runs (base seed: the scenario's own ``seed``), with the
-    ``warnings`` its network gave now (stored as NULL when there are none)."""
-    if runs < 1:
-        raise ValueError(f"runs must be >= 1, got {runs}")
+    ``warnings`` its network gave now (stored as NULL when there are none). At most ``MAX_RUNS``
+    runs: the runner derives every seed before the first episode, so a batch beyond that would
+    spend its start-up building seeds."""
+    from crossroads.evaluation.scenario import MAX_RUNS
+
+    if not 1 <= runs <= MAX_RUNS:
+        raise ValueError(f"runs must be in 1..{MAX_RUNS}, got {runs}")
     if traces not in TRACE_MODES:
         raise ValueError(f"traces must be one of {', '.join(TRACE_MODES)}, got {traces!r}")
     if isinstance(warnings, str):  # a str is a Sequence too: it would be stored letter by letter
@@ -154,6 +194,8 @@ def create_batch(*, session: Session, scenario: Scenario, policy: Policy, runs: 
 
 
 def get_batch(*, session: Session, batch_id: int) -> Batch | None:
+    if not in_id_range(batch_id):
+        return None
     stmt = (select(Batch).where(Batch.id == batch_id)
             .options(joinedload(Batch.scenario), joinedload(Batch.policy)))
     return session.scalars(stmt).first()
@@ -163,21 +205,59 @@ def list_batches(*, session: Session, status: str | Sequence[str] | None = None,
                  scenario_id: int | None = None, policy_id: int | None = None,
                  limit: int = 100, offset: int = 0) -> list[Batch]:
     """Batches, newest first."""
-    stmt = select(Batch).options(joinedload(Batch.scenario), joinedload(Batch.policy))
-    if status is not None:
-        stmt = stmt.where(Batch.status.in_([status] if isinstance(status, str) else list(status)))
-    if scenario_id is not None:
-        stmt = stmt.where(Batch.scenario_id == scenario_id)
-    if policy_id is not None:
-        stmt = stmt.where(Batch.policy_id == policy_id)
+    stmt = _batch_filter(select(Batch).options(joinedload(Batch.scenario), joinedload(Batch.policy)),
+                         status, scenario_id, policy_id)
     stmt = stmt.order_by(Batch.id.desc()).limit(limit).offset(offset)
     return list(session.scalars(stmt).unique())
 
 
+def count_batches(*, session: Session, status: str | Sequence[str] | None = None,
+                  scenario_id: int | None = None, policy_id: int | None = None) -> int:
+    """How many batches :func:`list_batches` would page through."""
+    stmt = _batch_filter(select(func.count()).select_from(Batch), status, scenario_id, policy_id)
+    return int(session.scalar(stmt) or 0)
+
+
+def _batch_filter(stmt: Any, status: str | Sequence[str] | None, scenario_id: int | None,
+                  policy_id: int | None) -> Any:
+    if status is not None:
+        stmt = stmt.where(Batch.status.in_([status] if isinstance(status, str) else list(status)))
+    for column, value in ((Batch.scenario_id, scenario_id), (Batch.policy_id, policy_id)):
+        if value is not None:  # an id beyond the column matches nothing (and never reaches the driver)
+            stmt = stmt.where(column == value) if in_id_range(value) else stmt.where(False)
+    return stmt
+
+
 def unfinished_batches(*, session: Session) -> list[Batch]:
-    """Every batch still queued or running, oldest first (what a restarted service resumes)."""
-    stmt = select(Batch).where(Batch.status.in_(UNFINISHED_STATUSES)).order_by(Batch.id)
+    """Every batch still queued or running and not asked to cancel, oldest first (what a
+    restarted service resumes)."""
+    stmt = (select(Batch).where(Batch.status.in_(UNFINISHED_STATUSES), Batch.cancel_requested_at.is_(None))
+            .order_by(Batch.id))
     return list(session.scalars(stmt))
+
+
+def request_cancel(*, session: Session, batch_id: int) -> Batch | None:
+    """Record that a user asked to cancel the batch (the first time counts); committed at once,
+    so a restart never resumes it, whatever its runner got to record. None: no such batch."""
+    batch = session.get(Batch, batch_id) if in_id_range(batch_id) else None
+    if batch is None:
+        return None
+    if batch.cancel_requested_at is None:
+        batch.cancel_requested_at = utcnow()
+        session.commit()
+    return batch
+
+
+def end_requested_cancels(*, session: Session) -> list[int]:
+    """Mark ``cancelled`` every unfinished batch a user asked to cancel (its runner stopped before
+    it could record that, e.g. the process was killed); their ids."""
+    rows = list(session.scalars(select(Batch).where(Batch.status.in_(UNFINISHED_STATUSES),
+                                                    Batch.cancel_requested_at.is_not(None))))
+    for batch in rows:
+        batch.status = "cancelled"
+        batch.finished_at = utcnow()
+    session.commit()
+    return [b.id for b in rows]
 
 
 def set_batch_status(*, session: Session, batch_id: int, status: str, error: str | None = None,
@@ -208,7 +288,7 @@ def set_batch_status(*, session: Session, batch_id: int, status: str, error: str
 
 def delete_batch(*, session: Session, batch_id: int) -> bool:
     """Delete a batch with its episodes (their traces' rows stay; files are the caller's)."""
-    batch = session.get(Batch, batch_id)
+    batch = session.get(Batch, batch_id) if in_id_range(batch_id) else None
     if batch is None:
         return False
     session.execute(Episode.__table__.delete().where(Episode.batch_id == batch_id))
@@ -288,13 +368,29 @@ def done_run_indices(*, session: Session, batch_id: int) -> set[int]:
     return set(session.scalars(select(Episode.run_index).where(Episode.batch_id == batch_id)))
 
 
-def batch_results(*, session: Session, batch_id: int, outcomes: Iterable[str] | None = None) -> list[Episode]:
-    """A batch's episodes in run order (optionally only some outcomes), traces loaded."""
+def batch_results(*, session: Session, batch_id: int, outcomes: Iterable[str] | None = None,
+                  limit: int | None = None, offset: int = 0) -> list[Episode]:
+    """A batch's episodes in run order (optionally only some outcomes, a page of ``limit`` from
+    ``offset``), traces loaded."""
+    if not in_id_range(batch_id):
+        return []
     stmt = (select(Episode).where(Episode.batch_id == batch_id)
             .options(joinedload(Episode.trace)).order_by(Episode.run_index))
     if outcomes is not None:
         stmt = stmt.where(Episode.outcome.in_(list(outcomes)))
+    if limit is not None or offset:
+        stmt = stmt.limit(limit).offset(offset)
     return list(session.scalars(stmt).unique())
+
+
+def count_results(*, session: Session, batch_id: int, outcomes: Iterable[str] | None = None) -> int:
+    """How many episodes :func:`batch_results` would page through."""
+    if not in_id_range(batch_id):
+        return 0
+    stmt = select(func.count()).select_from(Episode).where(Episode.batch_id == batch_id)
+    if outcomes is not None:
+        stmt = stmt.where(Episode.outcome.in_(list(outcomes)))
+    return int(session.scalar(stmt) or 0)
 
 
 def outcome_counts(*, session: Session, batch_id: int) -> dict[str, int]:
@@ -304,6 +400,8 @@ def outcome_counts(*, session: Session, batch_id: int) -> dict[str, int]:
 
 
 def get_episode(*, session: Session, batch_id: int, run_index: int) -> Episode | None:
+    if not (in_id_range(batch_id) and in_id_range(run_index, low=0)):
+        return None
     stmt = (select(Episode).where(Episode.batch_id == batch_id, Episode.run_index == run_index)
             .options(joinedload(Episode.trace)))
     return session.scalars(stmt).first()

@@ -44,6 +44,8 @@ NAMING_CONVENTION = {
 BATCH_STATUSES = ("queued", "running", "done", "cancelled", "failed")
 EPISODE_OUTCOMES = ("passed", "collision", "red_light", "off_road", "timeout", "error")
 TRACE_MODES = ("all", "failed", "none")
+POLICY_KINDS = ("builtin", "checkpoint", "onnx", "plugin")  # how a policy is identified (crud.policy_identity)
+MAX_ROW_ID = 2**31 - 1  # ids and run indices are INTEGER columns: 32-bit on PostgreSQL
 
 
 def utcnow() -> datetime:
@@ -74,19 +76,20 @@ class Scenario(Base):
 
 
 class Policy(Base):
-    """A controller: a built-in (``rule``) or a trained checkpoint, identified by its content."""
+    """A driver: a built-in (``rule``), a trained checkpoint, an ONNX file or a Python plugin,
+    identified by its content (``crud.policy_identity``)."""
 
     __tablename__ = "policies"
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     name: Mapped[str] = mapped_column(String(200))  # e.g. "rule", "apg"
     ref: Mapped[str] = mapped_column(String(1000))  # what was given: "rule", "models/apg.pt"
-    kind: Mapped[str] = mapped_column(String(16))  # builtin | checkpoint
+    kind: Mapped[str] = mapped_column(String(16))  # builtin | checkpoint | onnx | plugin
     file_hash: Mapped[str] = mapped_column(String(80), unique=True)  # sha256:<hex> | builtin:<name>
     card: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)  # model card
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
 
-    __table_args__ = (CheckConstraint(_in("kind", ("builtin", "checkpoint")), name="kind"),)
+    __table_args__ = (CheckConstraint(_in("kind", POLICY_KINDS), name="kind"),)
 
     batches: Mapped[list[Batch]] = relationship(back_populates="policy")
 
@@ -111,6 +114,9 @@ class Batch(Base):
     # lanes off the ego's paths), kept with it: a report read later must say it, whatever the network
     # has become. None is SQL NULL (none_as_null), not JSON null: "no warnings" reads one way.
     warnings: Mapped[list[str] | None] = mapped_column(JSON(none_as_null=True), nullable=True)
+    # When a user asked to cancel the batch: written at once, before any runner has stopped, so the
+    # cancel survives a restart (a batch with it set is never resumed, whatever its status says).
+    cancel_requested_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)

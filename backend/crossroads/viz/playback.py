@@ -54,6 +54,26 @@ def fig7_series(trace: Trace) -> dict[str, np.ndarray]:
     }
 
 
+def y_range(values: np.ndarray, pad: float = 0.08, min_span: float = 1.0) -> tuple[float, float]:
+    """A fixed y range [lo, hi] for a chart of ``values``: their finite extent widened by ``pad``
+    of the span on each side, and to at least ``min_span`` (a constant series is centred).
+
+    Fixed, because uPlot takes NaN for a value rather than a gap: a scale auto-ranged over the
+    NaN-padded "now" marker (or the speed mode's NaN "no decision") becomes NaN and the chart
+    draws nothing."""
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        return (-min_span / 2, min_span / 2)
+    lo, hi = float(finite.min()), float(finite.max())
+    span = hi - lo
+    if span < min_span:
+        mid = (lo + hi) / 2
+        lo, hi, span = mid - min_span / 2, mid + min_span / 2, min_span
+    return (lo - pad * span, hi + pad * span)
+
+
+MARKER_CLASS = "crossroads-now"  # CSS class of the charts' "now" marker series
+
 PLOTS: tuple[tuple[str, str, str], ...] = (
     ("speed", "speed [m/s]", "#1f77b4"),
     ("steering", "steering δ [deg]", "#2ca02c"),
@@ -149,18 +169,29 @@ class Playback:
 
             with gui.add_folder("Fig. 7: ego over time") as plot_folder:
                 self._gui.append(plot_folder)
+                # the "now" marker's legend entry would read NaN away from the current frame
+                self._gui.append(gui.add_html(f"<style>.uplot tr.{MARKER_CLASS} {{display: none}}</style>"))
                 t = self._series["t"]
                 for key, label, colour in PLOTS:
                     self.plots[key] = gui.add_uplot(
                         data=(t, self._series[key], self._marker(key, 0)),
                         series=(uplot.Series(label="t [s]"),
                                 uplot.Series(label=label, stroke=colour, width=2),
-                                uplot.Series(label="now", stroke="#000000", width=0,
+                                # NaN-padded, so kept out of the auto-ranging (a fixed y range too)
+                                uplot.Series(label="now", stroke="#000000", width=0, auto=False,
+                                             **{"class": MARKER_CLASS},
                                              points={"show": True, "size": 9, "fill": "#ff8800"})),
-                        scales={"x": uplot.Scale(time=False, auto=True)},
+                        scales={"x": uplot.Scale(time=False, auto=True),
+                                "y": uplot.Scale(auto=False, range=self._y_range(key))},
                         title=label, aspect=2.0,
                     )
                     self._gui.append(self.plots[key])
+
+    def _y_range(self, key: str) -> tuple[float, float]:
+        values = self._series[key]
+        if key == "speed_mode":  # both modes on the axis, whichever the episode used
+            values = np.concatenate([values, [0.0, 1.0]])
+        return y_range(values)
 
     def _marker(self, key: str, i: int) -> np.ndarray:
         m = np.full(self.n, np.nan)

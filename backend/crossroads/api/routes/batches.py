@@ -8,7 +8,7 @@ import json
 from collections.abc import AsyncIterator
 from typing import Annotated, Any
 
-from fastapi import APIRouter, HTTPException, Query, Request, status
+from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response, status
 from fastapi.responses import StreamingResponse
 from sqlalchemy.orm import Session
 
@@ -21,6 +21,7 @@ from crossroads.api.deps import (
     unprocessable,
 )
 from crossroads.api.jobs import JobRegistry
+from crossroads.api.params import BatchId, Page, paging, set_total
 from crossroads.api.routes.episodes import episode_public
 from crossroads.api.routes.policies import models_dir, policy_ref
 from crossroads.api.routes.scenarios import parse_scenario
@@ -34,9 +35,10 @@ from crossroads.api.schemas import (
 )
 from crossroads.evaluation.batch import summarize_batch
 from crossroads.evaluation.network_checks import batch_warnings
+from crossroads.evaluation.scenario import MAX_RUNS
 from crossroads.store import Store, crud
 from crossroads.store.crud import FINISHED_STATUSES
-from crossroads.store.tables import BATCH_STATUSES, Batch
+from crossroads.store.tables import BATCH_STATUSES, EPISODE_OUTCOMES, MAX_ROW_ID, Batch
 
 router = APIRouter(prefix="/batches", tags=["batches"])
 
@@ -69,7 +71,7 @@ def _public(session: Session, batch: Batch, jobs: JobRegistry, summary: BatchSum
         executor=batch.executor, error=batch.error, created_at=batch.created_at,
         started_at=batch.started_at, finished_at=batch.finished_at, progress=progress,
         queue_position=jobs.queue_position(batch.id), warnings=list(batch.warnings or []),
-        summary=summary)
+        cancel_requested=batch.cancel_requested_at is not None, summary=summary)
 
 
 def _summary(store: Store, batch_id: int) -> BatchSummary:
@@ -87,7 +89,10 @@ def start_batch(body: BatchCreate, session: SessionDep, store: StoreDep, jobs: J
     if (body.scenario_id is None) == (body.scenario is None):
         raise unprocessable([("scenario_id", "give exactly one of scenario_id (a stored scenario) "
                                              "and scenario (one given inline)")])
-    ref = policy_ref(body.policy, models_dir(options.models_dir))
+    if body.workers is not None and body.workers > settings.max_batch_workers:
+        raise unprocessable([("workers", f"at most {settings.max_batch_workers} on this server "
+                                         "(setting max_batch_workers)")])
+    ref = policy_ref(body.policy, models_dir(options.models_dir), data_dir=settings.data_dir)
     if body.scenario is not None:
         spec = parse_scenario(body.scenario, settings, prefix=("body", "scenario"))
         scenario = crud.get_or_create_scenario(session=session, spec=spec)
@@ -109,36 +114,40 @@ def start_batch(body: BatchCreate, session: SessionDep, store: StoreDep, jobs: J
 
 @router.get("")
 def list_batches(
-    session: SessionDep, jobs: JobsDep,
-    status_: Annotated[list[str] | None, Query(alias="status", description="only these statuses")] = None,
-    scenario_id: Annotated[int | None, Query(ge=1)] = None,
-    limit: Annotated[int, Query(ge=1, le=1000)] = 100,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    session: SessionDep, jobs: JobsDep, response: Response,
+    page: Annotated[Page, Depends(paging(100, 1000))],
+    status_: Annotated[list[str] | None, Query(alias="status", max_length=len(BATCH_STATUSES),
+                                               description="only these statuses")] = None,
+    scenario_id: Annotated[int | None, Query(ge=1, le=MAX_ROW_ID)] = None,
 ) -> list[BatchPublic]:
-    """Batches, newest first (progress, no summary)."""
+    """Batches, newest first (progress, no summary); ``X-Total-Count`` says how many match."""
     for s in status_ or []:
         if s not in BATCH_STATUSES:
-            raise unprocessable([("status", f"unknown status {s!r}; one of {', '.join(BATCH_STATUSES)}")],
+            raise unprocessable([("status", f"unknown status {s[:40]!r}; one of {', '.join(BATCH_STATUSES)}")],
                                 prefix=("query",))
     rows = crud.list_batches(session=session, status=status_, scenario_id=scenario_id,
-                             limit=limit, offset=offset)
+                             limit=page.limit, offset=page.offset)
+    set_total(response, crud.count_batches(session=session, status=status_, scenario_id=scenario_id))
     return [_public(session, b, jobs) for b in rows]
 
 
 @router.get("/{batch_id}")
-def get_batch(batch_id: int, session: SessionDep, store: StoreDep, jobs: JobsDep) -> BatchPublic:
+def get_batch(batch_id: BatchId, session: SessionDep, store: StoreDep, jobs: JobsDep) -> BatchPublic:
     """A batch: status, progress and the summary of what is recorded so far."""
     batch = _get(session, batch_id)
     return _public(session, batch, jobs, _summary(store, batch_id))
 
 
 @router.post("/{batch_id}/cancel", status_code=status.HTTP_202_ACCEPTED)
-def cancel_batch(batch_id: int, session: SessionDep, jobs: JobsDep) -> dict[str, Any]:
-    """Stop a batch: a running one soon (``cancelling``: runs in flight are dropped), a queued
-    one at once (``cancelled``). 409 when it has ended already."""
+def cancel_batch(batch_id: BatchId, session: SessionDep, jobs: JobsDep) -> dict[str, Any]:
+    """Stop a batch: a running (or starting) one soon (``cancelling``: runs in flight are
+    dropped), a queued one at once (``cancelled``). The request is stored first, so the batch
+    is never resumed, even when the server stops before the batch has. 409 when it has ended
+    already."""
     batch = _get(session, batch_id)
     if batch.status in FINISHED_STATUSES:
         raise HTTPException(status_code=409, detail=f"batch {batch_id} is {batch.status} already")
+    crud.request_cancel(session=session, batch_id=batch_id)
     if jobs.cancel(batch_id) == "cancelling":
         return {"id": batch_id, "status": "cancelling"}
     # Waiting in the queue, or no runner in this process (a previous server's batch): record it.
@@ -166,7 +175,7 @@ def _snapshot(store: Store, batch_id: int, jobs: JobRegistry) -> tuple[dict[str,
 @router.get("/{batch_id}/events", response_class=StreamingResponse,
             responses={200: {"content": {"text/event-stream": {}},
                              "description": "`progress` events, then one `end` event with the summary"}})
-async def batch_events(batch_id: int, request: Request, store: StoreDep, jobs: JobsDep) -> StreamingResponse:
+async def batch_events(batch_id: BatchId, request: Request, store: StoreDep, jobs: JobsDep) -> StreamingResponse:
     """Server-Sent Events: a ``progress`` event whenever the batch moves, then ``end`` (its
     status, warnings and summary) when it has finished; the stream then closes. Both carry the
     batch's stored ``warnings``, so a client that only follows the stream still sees them."""
@@ -200,10 +209,19 @@ async def batch_events(batch_id: int, request: Request, store: StoreDep, jobs: J
 
 
 @router.get("/{batch_id}/episodes")
-def batch_episodes(batch_id: int, session: SessionDep,
-                   outcome: Annotated[list[str] | None, Query(description="only these outcomes")] = None,
+def batch_episodes(batch_id: BatchId, session: SessionDep, response: Response,
+                   page: Annotated[Page, Depends(paging(MAX_RUNS, MAX_RUNS))],
+                   outcome: Annotated[list[str] | None, Query(max_length=len(EPISODE_OUTCOMES),
+                                                              description="only these outcomes")] = None,
                    ) -> list[EpisodePublic]:
-    """The recorded episodes of a batch, in run order."""
+    """The recorded episodes of a batch, in run order (a page of them: by default every one);
+    ``X-Total-Count`` says how many match."""
+    for o in outcome or []:
+        if o not in EPISODE_OUTCOMES:
+            raise unprocessable([("outcome", f"unknown outcome {o[:40]!r}; one of {', '.join(EPISODE_OUTCOMES)}")],
+                                prefix=("query",))
     _get(session, batch_id)
-    rows = crud.batch_results(session=session, batch_id=batch_id, outcomes=outcome)
+    rows = crud.batch_results(session=session, batch_id=batch_id, outcomes=outcome,
+                              limit=page.limit, offset=page.offset)
+    set_total(response, crud.count_results(session=session, batch_id=batch_id, outcomes=outcome))
     return [episode_public(e) for e in rows]

@@ -9,6 +9,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, HTTPException, Query
 
 from crossroads.api.deps import SessionDep
+from crossroads.api.params import BatchId, RunIndex
 from crossroads.api.schemas import EpisodePublic
 from crossroads.evaluation.trace import Trace
 from crossroads.store import crud
@@ -45,13 +46,13 @@ def _load_trace(row: TraceRow) -> Trace:
 
 
 @router.get("/{batch_id}/{run_index}")
-def get_episode(batch_id: int, run_index: int, session: SessionDep) -> EpisodePublic:
+def get_episode(batch_id: BatchId, run_index: RunIndex, session: SessionDep) -> EpisodePublic:
     """The result of run ``run_index`` of a batch."""
     return episode_public(_get(session, batch_id, run_index))
 
 
 @router.get("/{batch_id}/{run_index}/trace")
-def get_trace(batch_id: int, run_index: int, session: SessionDep,
+def get_trace(batch_id: BatchId, run_index: RunIndex, session: SessionDep,
               stride: Annotated[int, Query(ge=1, le=10_000, description="every stride-th step (and the last)")] = 1,
               ) -> dict[str, Any]:
     """The episode's trace as ``{header, frames}``; 404 when none was kept (see the batch's

@@ -1,11 +1,17 @@
-"""Intersections: the catalogue, the geometry of one (for drawing) and its candidate paths."""
+"""Intersections: the catalogue, the geometry of one (for drawing) and its candidate paths.
+
+``{name}`` is a catalogue name and nothing else: it is never resolved as a file (the server's
+working directory is nobody's business); uploaded networks have their own routes
+(``/intersections/uploads/{id}``, :mod:`crossroads.api.routes.uploads`).
+"""
 
 from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, HTTPException, Query
+from fastapi import APIRouter, Depends, HTTPException, Path, Query, Response
 
+from crossroads.api.params import Page, paging
 from crossroads.evaluation.network_checks import program_json
 from crossroads.constants import RHO_BEZIER
 from crossroads.network import catalogue
@@ -18,12 +24,24 @@ from crossroads.planning.internal_lanes import internal_lane_offsets, offset_war
 
 router = APIRouter(prefix="/intersections", tags=["intersections"])
 
+CatalogueName = Annotated[str, Path(min_length=1, max_length=100, description="a catalogue name (GET /intersections)")]
+
+
+def catalogue_junction(name: str) -> Junction:
+    """The junction of a catalogued intersection; 404 for any other name."""
+    known = catalogue.list_intersections()
+    if name not in known:
+        raise HTTPException(status_code=404, detail=f"no intersection {name[:100]!r} in the catalogue "
+                            f"({', '.join(known)}); uploaded networks are under /api/intersections/uploads")
+    return open_junction(name)
+
 
 @router.get("")
-def list_intersections() -> list[dict[str, Any]]:
+def list_intersections(response: Response,
+                       page: Annotated[Page, Depends(paging(100, 1000))]) -> list[dict[str, Any]]:
     """The catalogue: every intersection spec shipped under scenarios/intersections/."""
     items = []
-    for name in catalogue.list_intersections():
+    for name in page.slice(catalogue.list_intersections(), response):
         spec = catalogue.load_spec(name)
         items.append({
             "name": name,
@@ -34,10 +52,10 @@ def list_intersections() -> list[dict[str, Any]]:
 
 
 @router.get("/{name}")
-def intersection_geometry(name: str) -> dict[str, Any]:
+def intersection_geometry(name: CatalogueName) -> dict[str, Any]:
     """Lanes, junction polygon, medians, crossings, sidewalks and stop lines of one intersection,
     its signal program (what ``lights.phase`` indexes) and which link of it each movement has."""
-    junction = open_junction(name)
+    junction = catalogue_junction(name)
     return {"name": name, **geometry_with_program(junction)}
 
 
@@ -55,7 +73,7 @@ def geometry_with_program(junction: Junction) -> dict[str, Any]:
             "signal_links": signal_links(junction)}
 
 
-def paths_of(junction: Junction, task: str, approach: str | None, rho: float) -> list[dict[str, Any]]:
+def paths_of(junction: Junction, task: str, approach: str | None, rho: float | None) -> list[dict[str, Any]]:
     """The candidate paths of ``task`` from ``approach`` (default: the south); 422 naming the
     parameter when there are none."""
     try:
@@ -89,18 +107,20 @@ def internal_lanes_of(junction: Junction, name: str) -> dict[str, Any]:
 
 
 @router.get("/{name}/internal-lanes")
-def internal_lanes(name: str) -> dict[str, Any]:
+def internal_lanes(name: CatalogueName) -> dict[str, Any]:
     """How far SUMO's internal lanes run from the candidate paths of the same movements (the
     catalogue's builds draw them along the paths; see ``crossroads net check``)."""
-    return internal_lanes_of(open_junction(name), name)
+    return internal_lanes_of(catalogue_junction(name), name)
 
 
 @router.get("/{name}/paths")
 def candidate_paths(
-    name: str,
+    name: CatalogueName,
     task: Literal["left", "straight", "right"],
-    approach: Annotated[str | None, Query(description="incoming edge id; default: from the south")] = None,
-    rho: Annotated[float, Query(gt=0.0, lt=1.0, description="ρ of the Bezier construction")] = RHO_BEZIER,
+    approach: Annotated[str | None, Query(max_length=200, description="incoming edge id; default: from the south")] = None,
+    rho: Annotated[float | None, Query(gt=0.0, lt=1.0, description=(
+        f"ρ of the Bezier construction for every path (the paper: {RHO_BEZIER}); default: chosen "
+        "per path within the ego's steering limit"))] = None,
 ) -> list[dict[str, Any]]:
     """The candidate paths of a task: one per reachable target lane (SPEC §1)."""
-    return paths_of(open_junction(name), task, approach, rho)
+    return paths_of(catalogue_junction(name), task, approach, rho)

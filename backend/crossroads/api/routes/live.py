@@ -7,10 +7,13 @@ stands and its result; ``POST /live/{id}/stop`` ends it early. See :mod:`crossro
 
 from __future__ import annotations
 
-from fastapi import APIRouter, HTTPException, Request, status
+from typing import Annotated
+
+from fastapi import APIRouter, Depends, HTTPException, Request, Response, status
 
 from crossroads.api.deps import LiveDep, OptionsDep, SessionDep, SettingsDep, unprocessable
 from crossroads.api.live import LiveBusyError, LiveRun
+from crossroads.api.params import LiveId, Page, paging
 from crossroads.api.routes.playback import viewer_url
 from crossroads.api.routes.policies import models_dir, policy_ref
 from crossroads.api.routes.scenarios import parse_scenario
@@ -53,7 +56,7 @@ def start_live(body: LiveCreate, request: Request, session: SessionDep, settings
                options: OptionsDep, live: LiveDep) -> LivePublic:
     """Start one episode in the 3D view; answers at once with the viewer's ``url``. The episode
     starts when a first tab opens the viewer (or after a few seconds) and runs at ``speed``."""
-    ref = policy_ref(body.policy, models_dir(options.models_dir))
+    ref = policy_ref(body.policy, models_dir(options.models_dir), data_dir=settings.data_dir)
     spec = _scenario(body, session, settings)
     seed = body.seed if body.seed is not None else run_seeds(spec, 1)[0]
     try:
@@ -65,18 +68,19 @@ def start_live(body: LiveCreate, request: Request, session: SessionDep, settings
 
 
 @router.get("")
-def list_live(request: Request, live: LiveDep) -> list[LivePublic]:
+def list_live(request: Request, live: LiveDep, response: Response,
+              page: Annotated[Page, Depends(paging(100, 100))]) -> list[LivePublic]:
     """The live runs this server keeps (running and the latest finished ones)."""
-    return [_public(r, request) for r in live.list()]
+    return [_public(r, request) for r in page.slice(live.list(), response)]
 
 
 @router.get("/{run_id}")
-def get_live(run_id: int, request: Request, live: LiveDep) -> LivePublic:
+def get_live(run_id: LiveId, request: Request, live: LiveDep) -> LivePublic:
     return _public(_get(live, run_id), request)
 
 
 @router.post("/{run_id}/stop", status_code=status.HTTP_202_ACCEPTED)
-def stop_live(run_id: int, request: Request, live: LiveDep) -> LivePublic:
+def stop_live(run_id: LiveId, request: Request, live: LiveDep) -> LivePublic:
     """End a live run at its next step (it ends ``stopped``; the viewer stays open)."""
     run = _get(live, run_id)
     live.stop(run_id)

@@ -8,12 +8,16 @@ from typing import Annotated, Literal
 
 from fastapi import APIRouter, HTTPException, Query
 from fastapi.responses import HTMLResponse, Response
+from pydantic import Field
 
 from crossroads.api.deps import StoreDep
 from crossroads.evaluation.report import csv_rows, render_html
 from crossroads.store.reporting import UnknownBatchError, report_rows
+from crossroads.store.tables import MAX_ROW_ID
 
 router = APIRouter(prefix="/reports", tags=["reports"])
+
+MAX_REPORT_BATCHES = 50  # batches one report compares
 
 
 def _trace_link(batch_id: str, episode_id: int | str) -> str:
@@ -24,15 +28,13 @@ def _trace_link(batch_id: str, episode_id: int | str) -> str:
             responses={200: {"content": {"text/html": {}, "text/csv": {}}}})
 def report(
     store: StoreDep,
-    batch: Annotated[list[int], Query(min_length=1, description="batch ids (repeat: ?batch=1&batch=2)")],
+    batch: Annotated[list[Annotated[int, Field(ge=1, le=MAX_ROW_ID)]], Query(
+        min_length=1, max_length=MAX_REPORT_BATCHES, description="batch ids (repeat: ?batch=1&batch=2)")],
     format: Annotated[Literal["html", "csv"], Query()] = "html",  # noqa: A002 - the query's name
     title: Annotated[str, Query(max_length=200)] = "Crossroads evaluation",
 ) -> Response:
     """The report of the given batches (pass rates with Wilson intervals, travel times, paired
     comparisons, failed episodes)."""
-    if any(b < 1 for b in batch):
-        raise HTTPException(status_code=422, detail=[{"loc": ["query", "batch"], "msg": "batch ids are >= 1",
-                                                      "type": "value_error"}])
     try:
         rows = report_rows(store, list(dict.fromkeys(batch)))
     except UnknownBatchError as exc:

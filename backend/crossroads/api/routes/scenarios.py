@@ -15,11 +15,12 @@ import json
 from pathlib import PurePosixPath
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Body, HTTPException, Response, status
+from fastapi import APIRouter, Body, Depends, HTTPException, Response, status
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from crossroads.api.deps import SessionDep, SettingsDep, unprocessable
+from crossroads.api.params import Page, ScenarioId, paging, set_total
 from crossroads.api.schemas import Problem, ScenarioPublic, ScenarioValidation
 from crossroads.evaluation.network_checks import internal_lane_warning, network_problems
 from crossroads.evaluation.scenario import (
@@ -109,10 +110,13 @@ def validate(data: ScenarioBody, settings: SettingsDep) -> ScenarioValidation:
 
 
 @router.get("")
-def list_scenarios(session: SessionDep) -> list[ScenarioPublic]:
-    counts = dict(session.execute(select(Batch.scenario_id, func.count()).group_by(Batch.scenario_id)).all())
-    rows = session.scalars(select(Scenario).order_by(Scenario.id)).all()
-    return [_public(r, int(counts.get(r.id, 0))) for r in rows]
+def list_scenarios(session: SessionDep, response: Response,
+                   page: Annotated[Page, Depends(paging(100, 1000))]) -> list[ScenarioPublic]:
+    """Stored scenarios, oldest first; ``X-Total-Count`` says how many there are."""
+    rows = crud.list_scenarios(session=session, limit=page.limit, offset=page.offset)
+    counts = crud.batch_counts(session=session, scenario_ids=[r.id for r in rows])
+    set_total(response, crud.count_scenarios(session=session))
+    return [_public(r, counts.get(r.id, 0)) for r in rows]
 
 
 @router.post("", status_code=status.HTTP_201_CREATED,
@@ -130,13 +134,13 @@ def create_scenario(data: ScenarioBody, session: SessionDep, settings: SettingsD
 
 
 @router.get("/{scenario_id}")
-def get_scenario(scenario_id: int, session: SessionDep) -> ScenarioPublic:
+def get_scenario(scenario_id: ScenarioId, session: SessionDep) -> ScenarioPublic:
     row = _get(session, scenario_id)
     return _public(row, _batch_count(session, row.id))
 
 
 @router.put("/{scenario_id}")
-def update_scenario(scenario_id: int, data: ScenarioBody, session: SessionDep,
+def update_scenario(scenario_id: ScenarioId, data: ScenarioBody, session: SessionDep,
                     settings: SettingsDep) -> ScenarioPublic:
     """Replace a scenario that no batch has run yet."""
     row = _get(session, scenario_id)
@@ -154,7 +158,7 @@ def update_scenario(scenario_id: int, data: ScenarioBody, session: SessionDep,
 
 
 @router.delete("/{scenario_id}", status_code=status.HTTP_204_NO_CONTENT)
-def delete_scenario(scenario_id: int, session: SessionDep) -> Response:
+def delete_scenario(scenario_id: ScenarioId, session: SessionDep) -> Response:
     row = _get(session, scenario_id)
     if _batch_count(session, row.id):
         raise HTTPException(status_code=409, detail=f"scenario {scenario_id} has batches; delete them first")

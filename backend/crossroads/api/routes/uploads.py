@@ -26,9 +26,11 @@ from email.parser import BytesParser
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, HTTPException, Query, Request
+from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response
 
+from crossroads.api.body_limit import reads_own_body
 from crossroads.api.deps import OptionsDep, SettingsDep
+from crossroads.api.params import Page, paging
 from crossroads.evaluation.network_checks import program_json, uploaded_name
 from crossroads.api.routes.intersections import geometry_with_program, internal_lanes_of, paths_of, signal_links
 from crossroads.constants import RHO_BEZIER
@@ -124,6 +126,7 @@ def uploads_dir(data_dir: Path) -> Path:
                422: {"description": "not a SUMO network, an XML declaration, or a junction the "
                                     "reader cannot handle"}},
 )
+@reads_own_body  # its limit is the upload's (options.upload_max_bytes), not the API's JSON limit
 async def upload_network(request: Request, settings: SettingsDep, options: OptionsDep) -> dict[str, Any]:
     """Upload a SUMO network; its signalised junction is read and stored. Answers like
     GET /intersections/{name}, with the ``net`` to use in a scenario's ``intersection``."""
@@ -192,16 +195,17 @@ def _uploaded_path(digest: str, data_dir: Path) -> Path:
 
 
 @router.get("/uploads")
-def list_uploads(settings: SettingsDep) -> list[dict[str, Any]]:
+def list_uploads(settings: SettingsDep, response: Response,
+                 page: Annotated[Page, Depends(paging(100, 1000))]) -> list[dict[str, Any]]:
     """The uploaded networks, oldest first: ``id`` (sha256), the ``name`` it was uploaded under,
     and the ``net`` to use in a scenario's ``intersection``."""
     directory = uploads_dir(settings.data_dir)
     if not directory.is_dir():
-        return []
+        return page.slice([], response)
     files = [p for p in directory.glob("*.net.xml") if _SHA256.match(p.name.removesuffix(".net.xml"))]
     files.sort(key=lambda p: p.stat().st_mtime_ns)
     return [{"id": (digest := p.name.removesuffix(".net.xml")), "name": _uploaded_name(directory, digest),
-             "net": f"{UPLOADS}/{p.name}", "size_bytes": p.stat().st_size} for p in files]
+             "net": f"{UPLOADS}/{p.name}", "size_bytes": p.stat().st_size} for p in page.slice(files, response)]
 
 
 @router.get("/uploads/{digest}")
@@ -224,8 +228,10 @@ def uploaded_internal_lanes(digest: str, settings: SettingsDep) -> dict[str, Any
 def uploaded_paths(
     digest: str, settings: SettingsDep,
     task: Literal["left", "straight", "right"],
-    approach: Annotated[str | None, Query(description="incoming edge id; default: from the south")] = None,
-    rho: Annotated[float, Query(gt=0.0, lt=1.0, description="ρ of the Bezier construction")] = RHO_BEZIER,
+    approach: Annotated[str | None, Query(max_length=200, description="incoming edge id; default: from the south")] = None,
+    rho: Annotated[float | None, Query(gt=0.0, lt=1.0, description=(
+        f"ρ of the Bezier construction for every path (the paper: {RHO_BEZIER}); default: chosen "
+        "per path within the ego's steering limit"))] = None,
 ) -> list[dict[str, Any]]:
     """The candidate paths of a task on an uploaded network."""
     return paths_of(open_junction(_uploaded_path(digest, settings.data_dir)), task, approach, rho)

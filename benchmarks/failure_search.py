@@ -1,0 +1,222 @@
+"""Failure search against uniform random sampling of the same space, the same episode budget.
+
+    python benchmarks/failure_search.py --budget 1000            # the issue's figure
+    nice -n 10 python benchmarks/failure_search.py --budget 200 --timeout 60 --shrink-limit 10
+
+Two searches of one space for one policy (default ``models/apg.pt+shield`` on
+``scenarios/search/c_three_lane-left.yaml``), each through the real ``crossroads search`` command
+with the same budget, seed, workers and shrinking: one with optuna's TPE on the near-miss
+objective, one with optuna's uniform random sampler. Then every failure each stored is replayed
+with ``crossroads evaluate`` on its scenario file (a fresh store) and its outcome compared.
+
+Figures: distinct failing scenarios per 1 000 search episodes (distinct: the stored failure's
+scenario, its name left out; shrinking episodes are not counted in the budget and are reported
+apart), their ratio (target: TPE at least 3× random), failure modes (outcome and the parameters a
+shrunk failure still needs off nominal), the cells of the space (each range in thirds) that hold a
+failure, which near-copies of one failure cannot inflate, and how many stored failures replay with
+the same outcome (target: all).
+
+``--timeout S`` replaces the nominal scenario's episode timeout (the space is rewritten with the
+scenario inline): shorter episodes, the same failures before S. Exit status 1 when a target is
+missed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+TARGET_RATIO = 3.0
+CELL_BINS = 3  # a range cut in this many parts for failing_cells
+
+
+def crossroads(*args: str, env: dict[str, str]) -> dict[str, Any] | list[Any]:
+    """Run the real command; its JSON output (the last line)."""
+    done = subprocess.run([sys.executable, "-m", "crossroads.cli", *args], capture_output=True,
+                          text=True, cwd=REPO_ROOT, env=env)
+    if done.returncode != 0:
+        raise SystemExit(f"crossroads {' '.join(args)} failed ({done.returncode}):\n{done.stderr[-3000:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def space_file(space: Path, timeout: float | None, work: Path) -> Path:
+    """The space, with the nominal scenario inline and its timeout replaced when asked."""
+    if timeout is None:
+        return space
+    from crossroads.search.space import load_space
+
+    loaded = load_space(space)
+    data = loaded.to_json()
+    data["scenario"]["timeout_s"] = timeout
+    out = work / f"{space.stem}-timeout{timeout:g}.yaml"
+    out.write_text(yaml.safe_dump(data, sort_keys=False))
+    return out
+
+
+def replay(failures_dir: Path, policy: str, db: str, workers: int, env: dict[str, str]) -> dict[str, str]:
+    """``crossroads evaluate`` on every failure file of a search: scenario name → outcome."""
+    if not any(failures_dir.glob("*.yaml")):
+        return {}
+    batches = crossroads("evaluate", str(failures_dir), "--policy", policy, "--db", db,
+                         "--workers", str(workers), "--json", env=env)
+    out = {}
+    for batch in batches:  # type: ignore[union-attr]
+        counts = {k: v for k, v in batch["outcome_counts"].items() if v}
+        out[batch["scenario"]] = next(iter(counts)) if len(counts) == 1 else json.dumps(counts)
+    return out
+
+
+def stored_arms(db: str) -> dict[str, dict[str, Any]]:
+    """The summaries of the newest search of each sampler in the store (for --recount)."""
+    from crossroads.search import records
+    from crossroads.search.engine import summarize_search
+    from crossroads.store import open_store
+
+    store = open_store(db)
+    try:
+        with store.session() as session:
+            newest = {s.sampler: s.id for s in reversed(records.list_searches(session=session))}
+        return {sampler: summarize_search(store, newest[sampler]) for sampler in ("tpe", "random")}
+    finally:
+        store.close()
+
+
+def stored_replays(db: str) -> dict[str, str]:
+    """Scenario name → outcome of every replayed failure in the replay store (for --recount)."""
+    from crossroads.evaluation.batch import summarize_batch
+    from crossroads.store import crud, open_store
+
+    store = open_store(db)
+    try:
+        with store.session() as session:
+            ids = [b.id for b in crud.list_batches(session=session, limit=100_000)]
+        out = {}
+        for batch_id in ids:
+            result = summarize_batch(store, batch_id)
+            counts = {k: v for k, v in result.outcome_counts.items() if v}
+            out[result.scenario] = next(iter(counts)) if len(counts) == 1 else json.dumps(counts)
+        return out
+    finally:
+        store.close()
+
+
+def failing_cells(db: str, search_id: int, bins: int = CELL_BINS) -> int:
+    """How many cells of the space hold a failing episode of the search, each range cut in
+    ``bins`` equal parts (each choice a part of its own): a count of distinct failures that
+    near-copies of one failure cannot inflate."""
+    from crossroads.search import records
+    from crossroads.search.engine import stored_space
+    from crossroads.search.objective import FAILURE_VALUE
+    from crossroads.store import open_store
+
+    store = open_store(db)
+    try:
+        with store.session() as session:
+            search = records.get_search(session=session, search_id=search_id)
+            assert search is not None
+            space = stored_space(search.space, search_id)
+            failing = [t.params for t in records.trials(session=session, search_id=search_id, kind="search")
+                       if t.objective == FAILURE_VALUE]
+    finally:
+        store.close()
+    cells = set()
+    for params in failing:
+        cell = []
+        for p in space.parameters:
+            value = float(params[p.path])
+            if p.choices is not None:
+                cell.append(value)
+            else:
+                part = (value - float(p.low)) / (float(p.high) - float(p.low))  # type: ignore[arg-type]
+                cell.append(min(int(part * bins), bins - 1))
+        cells.add(tuple(cell))
+    return len(cells)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--policy", default="models/apg.pt+shield")
+    parser.add_argument("--space", type=Path, default=REPO_ROOT / "scenarios/search/c_three_lane-left.yaml")
+    parser.add_argument("--budget", type=int, default=1000, help="search episodes per arm")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--timeout", type=float, default=None, help="episode timeout [s] (default: the scenario's)")
+    parser.add_argument("--shrink-steps", type=int, default=None, help="per failure (default: 2 per parameter)")
+    parser.add_argument("--shrink-limit", type=int, default=None, help="shrink the first N failures of each arm")
+    parser.add_argument("--work-dir", type=Path, default=None, help="store, failures, reports (default: a temp dir)")
+    parser.add_argument("--out", type=Path, default=None, help="also write the figures as JSON")
+    parser.add_argument("--recount", action="store_true",
+                        help="run nothing: the figures of the searches and replays stored in --work-dir")
+    args = parser.parse_args()
+    if args.recount and args.work_dir is None:
+        parser.error("--recount needs --work-dir")
+
+    work = args.work_dir or Path(tempfile.mkdtemp(prefix="failure-search-"))
+    work.mkdir(parents=True, exist_ok=True)
+    env = {**os.environ, "CROSSROADS_DATA_DIR": str(work / "data")}
+    space = space_file(args.space.resolve(), args.timeout, work)
+    db = f"sqlite:///{work / 'search.db'}"
+    arms: dict[str, dict[str, Any]] = stored_arms(db) if args.recount else {}
+    for sampler in () if args.recount else ("tpe", "random"):
+        start = time.perf_counter()
+        command = ["search", args.policy, "--space", str(space), "--budget", str(args.budget),
+                   "--workers", str(args.workers), "--seed", str(args.seed), "--sampler", sampler,
+                   "--db", db, "--failures-dir", str(work / f"failures-{sampler}"),
+                   "--report", str(work / f"report-{sampler}.html"), "--json"]
+        if args.shrink_steps is not None:
+            command += ["--shrink-steps", str(args.shrink_steps)]
+        if args.shrink_limit is not None:
+            command += ["--shrink-limit", str(args.shrink_limit)]
+        summary = crossroads(*command, env=env)
+        assert isinstance(summary, dict)
+        summary["wall_s"] = round(time.perf_counter() - start, 1)
+        arms[sampler] = summary
+        print(f"{sampler}: {summary['searched']} episodes, outcomes {summary['outcomes']}, "
+              f"{summary['distinct_failures']} distinct failures, {summary['failure_modes']} modes, "
+              f"{summary['shrink_episodes']} shrinking episodes, {summary['wall_s']} s", flush=True)
+
+    replay_db = f"sqlite:///{work / 'replay.db'}"
+    figures: dict[str, Any] = {"policy": args.policy, "space": str(args.space), "budget": args.budget,
+                               "seed": args.seed, "timeout_s": args.timeout, "work_dir": str(work), "arms": {}}
+    all_replayed = True
+    for sampler, summary in arms.items():
+        replayed = (stored_replays(replay_db) if args.recount
+                    else replay(work / f"failures-{sampler}", args.policy, replay_db, args.workers, env))
+        stored = {f["name"]: f["outcome"] for f in summary["failure_list"]}
+        same = sum(replayed.get(name) == outcome for name, outcome in stored.items())
+        differ = {name: (outcome, replayed.get(name)) for name, outcome in stored.items()
+                  if replayed.get(name) != outcome}
+        all_replayed &= not differ
+        per_1000 = 1000.0 * summary["distinct_failures"] / summary["searched"] if summary["searched"] else 0.0
+        figures["arms"][sampler] = {
+            "episodes": summary["searched"], "outcomes": summary["outcomes"],
+            "failing_episodes": summary["failing"], "distinct_failures": summary["distinct_failures"],
+            "distinct_per_1000": round(per_1000, 1), "failure_modes": summary["failure_modes"],
+            "failing_cells": failing_cells(db, summary["search_id"]),
+            "shrink_episodes": summary["shrink_episodes"], "replayed_same": same,
+            "stored": len(stored), "replay_differs": differ, "wall_s": summary.get("wall_s")}
+    tpe, rnd = figures["arms"]["tpe"]["distinct_per_1000"], figures["arms"]["random"]["distinct_per_1000"]
+    ratio = tpe / rnd if rnd else float("inf") if tpe else None
+    figures["ratio"] = None if ratio is None else round(ratio, 2)
+    print(json.dumps(figures, indent=2))
+    if args.out is not None:
+        args.out.write_text(json.dumps(figures, indent=2) + "\n")
+    ok = all_replayed and ratio is not None and ratio >= TARGET_RATIO
+    print(f"distinct failing scenarios per 1000 episodes: TPE {tpe}, random {rnd}, ratio "
+          f"{figures['ratio']} (target >= {TARGET_RATIO:g}); every stored failure replays the same: "
+          f"{all_replayed}", flush=True)
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

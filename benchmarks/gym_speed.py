@@ -1,0 +1,166 @@
+"""Step rate of the Gymnasium environment (Crossroads-v0) beside the bare control loop.
+
+    .venv/bin/python benchmarks/gym_speed.py [--scenario scenarios/nominal/c_three_lane-left.yaml]
+                                             [--seeds 3] [--repeats 3]
+
+The same episodes, the same actions, four ways, alternating, in one process:
+
+* bare: ``World.step(action)`` and nothing else: what the control loop of ``run_episode`` costs
+  apart from the controller;
+* rule: ``World.step`` and the rule controller's ``decide`` (which gives those actions): the control
+  loop of ``crossroads run --policy rule``;
+* state: ``World.step`` and the IDC state of every candidate path (light logic, x_other, x_track):
+  what an IDC controller computes before its networks run;
+* gym: ``CrossroadsEnv.step(action)``: the world step, the states, the tracked path, the reward
+  (utility, 60 constraints and their penalty) and the ``info`` dict.
+
+The actions are the rule controller's, recorded once per seed (paper traffic), and replayed; resets
+are not timed (all four do the same warm-up). Times are the process's CPU time
+(``time.process_time``: libsumo runs in this process), so that other work on a shared machine
+counts less; the rates are printed per round with their median and best (on a loaded machine the
+best of several rounds is the steadier figure). Target (issue 40): gym ≥ 90 % of bare.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+from crossroads.evaluation.scenario import load_scenario, run_seeds
+from crossroads.gym import CrossroadsEnv
+from crossroads.gym.observation import idc_view
+from crossroads.gym.reward import RewardConfig, step_reward
+from crossroads.idc.rule_based import RuleBasedController
+from crossroads.sim.world import World
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def record_actions(world: World, seed: int) -> list[np.ndarray]:
+    """The rule controller's actions of one episode."""
+    controller = RuleBasedController()
+    obs, outcome, actions = world.reset(seed), None, []
+    controller.reset(world.candidates)
+    while outcome is None:
+        actions.append(controller.decide(obs).action)
+        obs, outcome = world.step(actions[-1])
+    return actions
+
+
+def time_world(world: World, seed: int, actions: list[np.ndarray], states: bool) -> tuple[int, float]:
+    """(steps, seconds) of replaying ``actions`` through the world, with or without the states."""
+    world.reset(seed)
+    steps, start = 0, time.process_time()
+    for action in actions:
+        obs, outcome = world.step(action)
+        if states:
+            idc_view(obs, False, "nearest")
+        steps += 1
+        if outcome is not None:
+            break
+    return steps, time.process_time() - start
+
+
+def time_rule(world: World, seed: int, actions: list[np.ndarray]) -> tuple[int, float]:
+    """(steps, seconds) of the rule controller driving (its decisions are the recorded actions)."""
+    controller = RuleBasedController()
+    obs = world.reset(seed)
+    controller.reset(world.candidates)
+    steps, start = 0, time.process_time()
+    for _ in actions:
+        obs, outcome = world.step(controller.decide(obs).action)
+        steps += 1
+        if outcome is not None:
+            break
+    return steps, time.process_time() - start
+
+
+def time_env(env: CrossroadsEnv, seed: int, actions: list[np.ndarray]) -> tuple[int, float]:
+    env.reset(seed=seed)
+    steps, start = 0, time.process_time()
+    for action in actions:
+        _, _, terminated, truncated, _ = env.step(action)
+        steps += 1
+        if terminated or truncated:
+            break
+    return steps, time.process_time() - start
+
+
+def component_costs(world: World, seed: int, actions: list[np.ndarray], rounds: int = 5) -> dict[str, float]:
+    """[µs per step] best of ``rounds`` passes over one episode's observations: the environment's
+    work beyond ``World.step`` (the IDC states and the tracked path; the reward)."""
+    world.reset(seed)
+    observations = []
+    for action in actions:
+        obs, outcome = world.step(action)
+        observations.append(obs)
+        if outcome is not None:
+            break
+    views = [idc_view(obs, False, "nearest") for obs in observations]
+    config = RewardConfig()
+    costs = {}
+    for name, work in (("states", lambda k: idc_view(observations[k], False, "nearest")),
+                       ("reward", lambda k: step_reward(config, views[k - 1].state, actions[k], views[k].state, None))):
+        best = float("inf")
+        for _ in range(rounds):
+            start = time.process_time()
+            for k in range(1, len(observations)):
+                work(k)
+            best = min(best, (time.process_time() - start) / (len(observations) - 1))
+        costs[name] = 1e6 * best
+    return costs
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenario", type=Path, default=REPO / "scenarios/nominal/c_three_lane-left.yaml")
+    parser.add_argument("--seeds", type=int, default=3, help="episodes (the scenario's first run seeds)")
+    parser.add_argument("--repeats", type=int, default=3, help="rounds of the three loops, alternating")
+    args = parser.parse_args()
+
+    spec = load_scenario(args.scenario)
+    seeds = run_seeds(spec, args.seeds)
+    env = CrossroadsEnv(args.scenario)
+    world = env.world  # one World (libsumo: one simulation per process), driven directly or by the env
+    recorded = {seed: record_actions(world, seed) for seed in seeds}
+    runs = {"bare": lambda seed, actions: time_world(world, seed, actions, False),
+            "rule": lambda seed, actions: time_rule(world, seed, actions),
+            "state": lambda seed, actions: time_world(world, seed, actions, True),
+            "gym": lambda seed, actions: time_env(env, seed, actions)}
+    rates: dict[str, list[float]] = {name: [] for name in runs}
+    try:
+        for _ in range(args.repeats):
+            totals: dict[str, list[float]] = {k: [0, 0.0] for k in rates}
+            for seed, actions in recorded.items():
+                for name, run in runs.items():
+                    steps, seconds = run(seed, actions)
+                    totals[name][0] += steps
+                    totals[name][1] += seconds
+            for name, (steps, seconds) in totals.items():
+                rates[name].append(steps / seconds)
+        first = next(iter(recorded))
+        costs = component_costs(world, first, recorded[first])
+    finally:
+        env.close()
+    steps = sum(len(a) for a in recorded.values())
+    print(f"{spec.name}: {len(seeds)} episodes, {steps} recorded steps, {args.repeats} rounds "
+          f"(steps/s per round; median)")
+    for name, values in rates.items():
+        print(f"  {name:5s} {' '.join(f'{v:7.0f}' for v in values)}   median {statistics.median(values):7.0f}"
+              f"   best {max(values):7.0f}")
+    world_us = 1e6 / max(rates["bare"])
+    print(f"per step, best of 5 over one episode: the states {costs['states']:.0f} µs, the reward "
+          f"{costs['reward']:.0f} µs; World.step {world_us:.0f} µs (best round): their share "
+          f"{100 * world_us / (world_us + costs['states'] + costs['reward']):.1f} %")
+    for label, pick in (("median", statistics.median), ("best", max)):
+        gym = pick(rates["gym"])
+        print(f"{label}: gym / " + ", gym / ".join(f"{name} = {100 * gym / pick(rates[name]):.1f} %"
+                                                   for name in ("bare", "rule", "state")) + " (target >= 90 %)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,169 @@
+"""Does the world flow? SUMO's own driver, the rule controller and the traffic, measured.
+
+    .venv/bin/python benchmarks/world_flow.py [--runs 200] [--base-seed 20261206] \
+        [--policy sumo --policy rule] [--scenario scenarios/nominal/c_three_lane-left.yaml ...] \
+        [--flow-window 900] [--workers 2] [--json OUT.json]
+
+Three measurements of the world as built (sim/gridlock.py, the signal program of
+network/build.py, the demand of sim/traffic.py), on seeds drawn from ``--base-seed`` (not the
+scenarios' own base seed 0, so that nothing here was tuned on the seeds it reports):
+
+1. per scenario (default: the 18 nominal and the 6 paper scenarios) and policy (default: ``sumo``,
+   SUMO's own driver, and ``rule``): outcomes of ``--runs`` seeded episodes with the scenario's
+   timeout, the pass rate with its Wilson interval, the runs *blocked by the world* (a timeout
+   behind a participant that barred every candidate path the whole episode: sim/blocking.py)
+   and the participants the gridlock breaker removed per episode;
+2. per intersection: the flow that crossed the junction per entrance lane and hour, per kind,
+   against the demand (sim/flow.py), over ``--flow-window`` seconds after the warm-up;
+3. targets: SUMO's driver ≥ 98 % on every nominal scenario with 0 collisions; blocked runs ≤ 1
+   per scenario; the rule controller ≥ 90 % on the nominal left turn of c_three_lane and ≥ 95 % on
+   every nominal straight and right turn; every flow within 10 % of its demand.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+from collections import Counter
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+from crossroads.evaluation.episode import run_episode  # noqa: E402
+from crossroads.evaluation.metrics import wilson_interval  # noqa: E402
+from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
+from crossroads.evaluation.sumo_driver import SUMO_POLICY, SumoDriverPolicy  # noqa: E402
+from crossroads.network.junction import read_junction  # noqa: E402
+from crossroads.sim.flow import measure_flow  # noqa: E402
+from crossroads.sim.world import World  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+DEFAULT_SCENARIOS = sorted((ROOT / "scenarios" / "nominal").glob("*.yaml")) + sorted(
+    (ROOT / "scenarios" / "paper").glob("*.yaml"))
+DEFAULT_BASE_SEED = 20261206  # differs from the scenarios' own base seed (0)
+
+
+def _controller(policy: str):  # noqa: ANN202 - a Controller or SUMO's driver
+    if policy == SUMO_POLICY:
+        return SumoDriverPolicy()
+    from crossroads.evaluation.policies import load_controller, parse_policy
+    return load_controller(parse_policy(policy))
+
+
+def _episodes(task: tuple[str, str, list[int]]) -> list[dict[str, object]]:
+    """Run one scenario's seeds with one policy (in a worker process)."""
+    path, policy, seeds = task
+    spec = load_scenario(Path(path))
+    controller = _controller(policy)
+    out = []
+    with World(to_world_config(spec, Path(path).parent)) as world:
+        for seed in seeds:
+            r = run_episode(world, controller, seed)
+            out.append({"seed": seed, "outcome": r.outcome, "time_s": r.time_s,
+                        "travel_time_s": r.travel_time_s, "blocked_by": r.blocked_by,
+                        "removed": sum(1 for e in r.events if e["event"] == "gridlock_removed"),
+                        "detail": r.detail})
+    return out
+
+
+def _flow(task: tuple[str, int, float]) -> dict[str, object]:
+    path, seed, window = task
+    spec = load_scenario(Path(path))
+    cfg = to_world_config(spec, Path(path).parent)
+    junction = read_junction(cfg.net_file, cfg.junction_id)
+    with tempfile.TemporaryDirectory() as tmp:
+        report = measure_flow(junction, cfg.demand, Path(tmp), seed=seed, warmup_s=cfg.warmup_s,
+                              window_s=window, gridlock_stand_s=cfg.gridlock_stand_s)
+    return {"intersection": str(spec.intersection), "kinds": [
+        {"kind": k.kind, "demand": k.demand_per_lane_h, "crossed": k.crossed_per_lane_h,
+         "removed": k.removed} for k in report.kinds]}
+
+
+def _report(path: str, policy: str, eps: list[dict[str, object]]) -> bool:
+    """Print one scenario × policy row; whether it meets its targets."""
+    c = Counter(str(e["outcome"]) for e in eps)
+    n = len(eps)
+    lo, hi = wilson_interval(c["passed"], n)
+    blocked = sum(1 for e in eps if e["blocked_by"])
+    removed = sum(int(e["removed"]) for e in eps) / max(n, 1)
+    name = Path(path).stem
+    print(f"{Path(path).parent.name + '/' + name:38} {policy:6} {c['passed']:>3}/{n:<3} "
+          f"[{100 * lo:5.1f},{100 * hi:5.1f}] {c['collision']:>4} {c['red_light']:>3} "
+          f"{c['off_road']:>3} {c['timeout']:>3} {blocked:>7} {removed:>10.2f}", flush=True)
+    rate = c["passed"] / max(n, 1)
+    nominal = Path(path).parent.name == "nominal"
+    if policy == SUMO_POLICY and nominal and (rate < 0.98 or c["collision"] > 0):
+        return False
+    if blocked > 1:
+        return False
+    return not (policy == "rule" and nominal and (
+        (name == "c_three_lane-left" and rate < 0.90)
+        or (name.endswith(("-straight", "-right")) and rate < 0.95)))
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=200)
+    parser.add_argument("--base-seed", type=int, default=DEFAULT_BASE_SEED)
+    parser.add_argument("--policy", action="append", default=[])
+    parser.add_argument("--scenario", action="append", type=Path, default=[])
+    parser.add_argument("--flow-window", type=float, default=900.0, help="[s]; 0 skips the flow")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    parser.add_argument("--json", type=Path)
+    args = parser.parse_args()
+    policies = args.policy or [SUMO_POLICY, "rule"]
+    scenarios = args.scenario or DEFAULT_SCENARIOS
+    tasks = []
+    for path in scenarios:
+        spec = load_scenario(path).model_copy(update={"seed": args.base_seed})
+        seeds = run_seeds(spec, args.runs)
+        chunk = 10  # seeds per task: small enough to keep every worker busy to the end
+        for policy in policies:
+            tasks += [(str(path), policy, seeds[i:i + chunk]) for i in range(0, len(seeds), chunk)]
+    results: dict[tuple[str, str], list[dict[str, object]]] = {}
+    chunks_left = Counter((t[0], t[1]) for t in tasks)
+    ok = True
+    print(f"base seed {args.base_seed}, {args.runs} runs per scenario and policy", flush=True)
+    print(f"{'scenario':38} {'policy':6} {'passed':>7} {'95 % CI':>15} {'coll':>4} {'red':>3} "
+          f"{'off':>3} {'tmo':>3} {'blocked':>7} {'removed/ep':>10}", flush=True)
+    with ProcessPoolExecutor(args.workers) as pool:
+        futures = {pool.submit(_episodes, task): task for task in tasks}
+        for future in as_completed(futures):
+            path, policy, _ = futures[future]
+            results.setdefault((path, policy), []).extend(future.result())
+            chunks_left[(path, policy)] -= 1
+            if chunks_left[(path, policy)] == 0:
+                ok &= _report(path, policy, results[(path, policy)])
+        flows = []
+        if args.flow_window > 0:
+            by_intersection = {}
+            for path in scenarios:
+                by_intersection.setdefault(str(load_scenario(path).intersection), path)
+            flow_tasks = [(str(p), args.base_seed, args.flow_window) for p in by_intersection.values()]
+            flows = list(pool.map(_flow, flow_tasks))
+    if flows:
+        print(f"\nflow over {args.flow_window:g} s after the warm-up, per entrance lane and hour "
+              "(crossed / demand; removed by the gridlock breaker)")
+        for f in flows:
+            cells = []
+            for k in f["kinds"]:
+                ratio = k["crossed"] / k["demand"] if k["demand"] else float("nan")
+                cells.append(f"{k['kind']} {k['crossed']:.0f}/{k['demand']:.0f} ({100 * ratio:.0f} %, "
+                             f"removed {k['removed']})")
+                if k["demand"] and abs(ratio - 1.0) > 0.10:
+                    ok = False
+            print(f"  {f['intersection']:20} " + "; ".join(cells))
+    print(f"\ntargets {'met' if ok else 'NOT met'}")
+    if args.json:
+        args.json.write_text(json.dumps({"base_seed": args.base_seed, "runs": args.runs,
+                                         "episodes": {f"{Path(p).stem}|{pol}": e for (p, pol), e in results.items()},
+                                         "flows": flows}, indent=1))
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
