@@ -5,6 +5,7 @@ import { clearErrors, showErrors } from "./form";
 
 const FINISHED = ["done", "cancelled", "failed"];
 let following: number | null = null; // the batch whose progress the bar shows
+let stream: EventSource | null = null; // its event stream (one at a time: a new follow closes it)
 const FOLLOWED_KEY = "crossroads.followed-batch"; // sessionStorage: the batch this tab followed last
 const LIST_POLL_MS = 3000; // the batch list is read again this often while a batch is unfinished
 let listTimer: number | undefined;
@@ -60,7 +61,9 @@ export function follow(batchId: number, done: () => void): void {
   text.textContent = `batch #${batchId}: starting…`;
   showProgressWarnings([]);
   showCancel(batchId);
+  stream?.close(); // the batch followed before (e.g. reattached after a reload) runs on unshown
   const source = new EventSource(`/api/batches/${batchId}/events`);
+  stream = source;
   source.addEventListener("progress", (ev) => {
     const p = JSON.parse((ev as MessageEvent).data);
     bar.value = p.fraction;
@@ -149,6 +152,12 @@ function warningsHtml(b: Json): string {
   return `<ul id="batch-warnings" class="hint warning">${warnings.map((w) => `<li>Warning: ${esc(w)}</li>`).join("")}</ul>`;
 }
 
+const TRAVEL_TIME = "from the ego crossing its stop line to its leaving the intersection, over the passed runs";
+const CLOSEST_CENTRE = "closest distance between the ego's centre and any other road user's centre over the episode "
+  + "(centre to centre, not a gap between outlines: a collision can happen at 3–5 m)";
+const CLOSEST_GAP = "smallest gap between the ego's outline and that of a road user it was closing in on (0 or less: touching)";
+const metres = (x: number | null | undefined): string => (x == null ? "–" : `${x.toFixed(2)} m`);
+
 function summaryHtml(b: Json): string {
   const s = b.summary;
   if (!s) return `<p>No results yet.</p>${warningsHtml(b)}`;
@@ -162,16 +171,17 @@ function summaryHtml(b: Json): string {
     <dl class="figures">
       <div><dt>Pass rate</dt><dd id="pass-rate">${pct(s.pass_rate)}</dd></div>
       <div><dt>Wilson 95 %</dt><dd id="wilson">[${pct(s.wilson_low)}, ${pct(s.wilson_high)}]</dd></div>
-      <div><dt>Travel time (passed)</dt><dd id="travel-time">${tt}</dd></div>
+      <div><dt title="${esc(TRAVEL_TIME)}">Travel time (passed)</dt><dd id="travel-time">${tt}</dd></div>
     </dl>
+    <p class="hint" id="travel-time-hint">Travel time: ${esc(TRAVEL_TIME)}.</p>
     <table class="counts"><thead><tr><th>Outcome</th><th>Episodes</th></tr></thead><tbody>${counts}</tbody></table>`;
 }
 
-function episodeRow(e: Json): string {
+function episodeRow(e: Json, gaps: boolean): string {
   return `
     <tr class="${e.passed ? "passed" : "failed"}">
       <td>${e.run_index}</td><td>${e.seed}</td><td>${esc(e.outcome)}</td><td>${secs(e.travel_time_s)}</td>
-      <td>${e.min_distance_m == null ? "–" : e.min_distance_m.toFixed(2) + " m"}</td>
+      ${gaps ? `<td class="gap">${metres(e.min_gap_m)}</td>` : ""}<td class="centre">${metres(e.min_distance_m)}</td>
       <td title="${esc(e.error_message ?? "")}">${esc(e.detail)}</td>
       <td>${e.has_trace
         ? `<a class="playback" target="_blank" rel="noopener" href="/api/playback/${e.batch_id}/${e.run_index}">3D playback</a>`
@@ -182,8 +192,12 @@ function episodeRow(e: Json): string {
 export async function showBatch(batchId: number): Promise<void> {
   const [b, episodes] = await Promise.all([api(`/api/batches/${batchId}`), api(`/api/batches/${batchId}/episodes`)]);
   $("#summary").innerHTML = summaryHtml(b);
+  const gaps = (episodes as Json[]).some((e) => "min_gap_m" in e); // where the API gives the footprint gap
   $("#episodes").innerHTML = episodes.length
-    ? `<table><thead><tr><th>Run</th><th>Seed</th><th>Outcome</th><th>Travel time</th><th>Min. distance</th><th>Detail</th><th></th></tr></thead><tbody>${(episodes as Json[]).map(episodeRow).join("")}</tbody></table>`
+    ? `<table><thead><tr><th>Run</th><th>Seed</th><th>Outcome</th><th title="${esc(TRAVEL_TIME)}">Travel time</th>
+      ${gaps ? `<th title="${esc(CLOSEST_GAP)}">Closest gap</th>` : ""}<th title="${esc(CLOSEST_CENTRE)}">Closest centre distance</th><th>Detail</th><th></th></tr></thead>
+      <tbody>${(episodes as Json[]).map((e) => episodeRow(e, gaps)).join("")}</tbody></table>
+      <p class="hint" id="episode-hints">Travel time: ${esc(TRAVEL_TIME)}. Closest centre distance: ${esc(CLOSEST_CENTRE)}.${gaps ? ` Closest gap: ${esc(CLOSEST_GAP)}.` : ""}</p>`
     : '<p class="hint">No episodes recorded.</p>';
 }
 

@@ -17,15 +17,22 @@ import { uploadNetwork } from "./upload";
 let scenarioId: number | null = null; // the saved scenario the form shows; null once edited
 const policy = () => $<HTMLSelectElement>("#policy").value;
 
+const SAVED_KEY = "crossroads.saved-scenario"; // sessionStorage: the saved scenario the form shows
+
+function showSaved(id: number, name: string): void {
+  scenarioId = id;
+  $("#saved").textContent = `Saved as scenario #${id} (${name})`;
+  $<HTMLButtonElement>("#run").disabled = false;
+}
+
 async function save(ev: Event): Promise<void> {
   ev.preventDefault();
   clearErrors();
   $("#save-error").textContent = "";
   try {
     const s = await post("/api/scenarios", scenarioBody());
-    scenarioId = s.id;
-    $("#saved").textContent = `Saved as scenario #${s.id} (${s.name})`;
-    $<HTMLButtonElement>("#run").disabled = false;
+    showSaved(s.id, s.name);
+    sessionStorage.setItem(SAVED_KEY, JSON.stringify({ id: s.id, name: s.name }));
   } catch (e) {
     forget();
     showErrors(e);
@@ -53,6 +60,7 @@ function pointAtErrors(): void {
 /** A changed scenario must be saved again before a batch runs it. */
 function forget(): void {
   scenarioId = null;
+  sessionStorage.removeItem(SAVED_KEY);
   $<HTMLButtonElement>("#run").disabled = true;
   $("#saved").textContent = "";
   $("#save-error").textContent = "";
@@ -135,6 +143,8 @@ async function restoreForm(): Promise<void> {
   const source = currentSource();
   if (source) limitElapsed(await geometryOf(source));
   await drawPreview();
+  const saved = JSON.parse(sessionStorage.getItem(SAVED_KEY) ?? "null"); // unedited since its save
+  if (saved?.id) showSaved(Number(saved.id), String(saved.name));
 }
 
 async function init(): Promise<void> {

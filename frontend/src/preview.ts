@@ -10,6 +10,14 @@ const EGO_LENGTH_M = 4.8; // drawn size of the ego marker (the simulation's own 
 const EGO_WIDTH_M = 2.0;
 const VIEW_RADIUS_M = 45; // [m] around the junction's centre, more when the ego starts further out
 const EGO_MARGIN_M = 8;
+const CAPTION_BAND = 6; // [m at the default view] height of the caption's strip above the map
+
+/** An error of the preview, in full (wrapped) under the picture; "" hides it. */
+function showPreviewError(text: string): void {
+  const el = $("#preview-error");
+  el.textContent = text;
+  el.hidden = !text;
+}
 
 function svgEl(tag: string, attrs: Record<string, string | number>): SVGElement {
   const el = document.createElementNS(SVG, tag);
@@ -135,20 +143,27 @@ export async function drawPreview(): Promise<void> {
     const [cx, cy] = geo.center;
     const ego = egoStart(geo, paths);
     const r = Math.max(VIEW_RADIUS_M, ego ? Math.hypot(ego.x - cx, ego.y - cy) + EGO_MARGIN_M : 0); // the ego in view
-    svg.setAttribute("viewBox", `${cx - r} ${-cy - r} ${2 * r} ${2 * r}`);
+    const k = r / VIEW_RADIUS_M; // text scales with the view, so it reads the same size
+    const band = CAPTION_BAND * k; // the caption's own strip above the map: it never covers a road
+    svg.setAttribute("viewBox", `${cx - r} ${-cy - r - band} ${2 * r} ${2 * r + band}`);
+    svg.style.aspectRatio = `${2 * r} / ${2 * r + band}`;
     svg.append(svgEl("rect", { x: cx - r, y: -cy - r, width: 2 * r, height: 2 * r, fill: "#dfe8d8" }));
     drawRoads(svg, geo);
     drawSumoLanes(svg, paths);
     drawPaths(svg, paths);
     if (ego) drawEgo(svg, ego);
-    const caption = svgEl("text", { x: cx - r + 2, y: -cy - r + 5, "font-size": (3.5 * r) / VIEW_RADIUS_M, fill: "#222" });
-    caption.textContent = pathError ? `no ${task} path: ${pathError}` : `${source.label} · ${task}: ${paths.length} candidate path(s)`;
+    // the strip last, over the ends of the roads that reach beyond the map
+    svg.append(svgEl("rect", { x: cx - r, y: -cy - r - band, width: 2 * r, height: band, fill: "#fff" }));
+    const caption = svgEl("text", { x: cx - r + 2 * k, y: -cy - r - band * 0.35, "font-size": 3 * k, fill: pathError ? "#b00020" : "#222" });
+    caption.textContent = pathError ? `${source.label} · no ${task} path (the reason is below)` : `${source.label} · ${task}: ${paths.length} candidate path(s)`;
     svg.append(caption);
+    showPreviewError(pathError ? `No ${task} path: ${pathError}` : "");
   } catch (e) {
     if (draw !== latestDraw) return;
     svg.replaceChildren();
     const t = svgEl("text", { x: -55, y: 0, "font-size": 4, fill: "#b00" });
-    t.textContent = `cannot draw ${source.label}: ${e}`;
+    t.textContent = `cannot draw ${source.label} (the reason is below)`;
     svg.append(t);
+    showPreviewError(`Cannot draw ${source.label}: ${e instanceof ApiError ? String(e.detail) : String(e)}`);
   }
 }

@@ -160,11 +160,12 @@ def test_a_batch_that_cannot_start_fails_with_its_reason(client: TestClient, tin
 
 def test_a_batch_on_a_net_whose_internal_lanes_run_off_the_paths_keeps_the_warning(
         client: TestClient, tiny_scenario: dict[str, Any], data_dir: Path, wait_for: Any) -> None:
-    """netconvert drew cross.net.xml's left turns up to 3.1 m from the candidate paths: a batch on
-    it stores the warning POST /scenarios/validate gives, and every answer about it carries it."""
+    """netconvert drew cross.net.xml's left turns up to 3 m from the paper's fixed-ρ candidate paths:
+    a batch on it stores the warning POST /scenarios/validate gives, and every answer about it
+    carries it."""
     upload = client.post("/api/intersections/upload", files={
         "file": ("cross.net.xml", sumo_example(SUMO_CROSS_NET).read_bytes(), "application/xml")}).json()
-    scenario = {**tiny_scenario, "name": "api-cross-left", "intersection": {"net": upload["net"]}}
+    scenario = {**tiny_scenario, "name": "api-cross-left", "intersection": {"net": upload["net"]}, "rho": 0.6}
     (expected,) = client.post("/api/scenarios/validate", json=scenario).json()["warnings"]
     response = client.post("/api/batches", json={"scenario": scenario, "runs": 1, "workers": 1,
                                                  "traces": "none"})

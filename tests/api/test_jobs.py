@@ -267,7 +267,10 @@ def test_an_episode_beyond_the_wall_clock_limit_is_an_error(tmp_path: Path) -> N
     killed) and recorded as an error; the batch goes on to its end."""
     settings = Settings(data_dir=tmp_path, episode_wall_limit_s=1.0)
     with TestClient(create_app(settings), base_url=LOCAL_URL) as client:
-        started = client.post("/api/batches", json={"scenario": {**TINY_SCENARIO, "name": "too-slow"},
+        # ten minutes of busy traffic before the ego enters: several seconds of wall-clock at least
+        slow = {**TINY_SCENARIO, "name": "too-slow", "warmup_s": 600.0,
+                "traffic": {"vehicles_per_hour": 800.0, "cyclists_per_hour": 100.0, "pedestrians_per_hour": 100.0}}
+        started = client.post("/api/batches", json={"scenario": slow,
                                                     "runs": 2, "workers": 1, "traces": "none"})
         body = _wait_for(client, started.json()["id"], ("done", "failed", "cancelled"), timeout_s=60)
         assert body["status"] == "done" and body["progress"]["errors"] == 2, body

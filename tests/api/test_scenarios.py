@@ -162,8 +162,8 @@ def test_policies_lists_rule_and_checkpoints_with_cards(client: TestClient) -> N
     ({"ego": {"start_distance_m": 400.0}}, ("ego", "start_distance_m"), "at most"),
     ({"ego": {"start_distance_m": 0.0}}, ("ego", "start_distance_m"), "greater than 0"),
     ({"ego": {"start_speed_mps": -1.0}}, ("ego", "start_speed_mps"), "greater than or equal"),
-    ({"lights": {"phase": 4}}, ("lights", "phase"), "0 to 3"),
-    ({"lights": {"phase": 1, "elapsed_s": 3.0}}, ("lights", "elapsed_s"), "lasts 3 s"),
+    ({"lights": {"phase": 8}}, ("lights", "phase"), "0 to 7"),
+    ({"lights": {"phase": 2, "elapsed_s": 3.0}}, ("lights", "elapsed_s"), "lasts 3 s"),
     ({"lights": {"phase": 0, "elapsed_s": -1.0}}, ("lights", "elapsed_s"), "greater than or equal"),
 ])
 def test_what_the_network_contradicts_names_the_field(
@@ -182,15 +182,17 @@ def test_what_the_network_contradicts_names_the_field(
 def test_ego_start_and_lights_that_fit_the_network(client: TestClient, tiny_scenario: dict[str, Any]) -> None:
     data = {**tiny_scenario, "name": "ego-start", "intersection": "c_three_lane", "approach": "south_in",
             "ego": {"entrance_lane": "south_in_4", "start_distance_m": 25.0, "start_speed_mps": 5.0},
-            "lights": {"phase": 2, "elapsed_s": 30.0}}
+            "lights": {"phase": 4, "elapsed_s": 20.0}}
     created = client.post("/api/scenarios", json=data)
     assert created.status_code == 201, created.text
     spec = created.json()["spec"]
     assert spec["ego"] == {"entrance_lane": "south_in_4", "start_distance_m": 25.0, "start_speed_mps": 5.0}
-    assert spec["lights"] == {"ego": None, "phase": 2, "elapsed_s": 30.0, "program": None}
+    assert spec["lights"] == {"ego": None, "phase": 4, "elapsed_s": 20.0, "program": None}
     assert spec["approach"] == "south_in"
     geometry = client.get("/api/intersections/c_three_lane").json()
-    assert [p["duration_s"] for p in geometry["program"]["phases"]] == [60.0, 3.0, 37.0, 3.0]
+    # walk, pedestrian clearance, yellow, all-red of each axis (network/build.py)
+    assert [p["duration_s"] for p in geometry["program"]["phases"]] == [50.0, 10.0, 3.0, 2.0,
+                                                                      23.0, 10.0, 3.0, 2.0]
     links = [m["link"] for m in geometry["signal_links"]["south_in"] if m["lane"] == "south_in_4" and m["turn"] == "left"]
     assert links and all(geometry["program"]["phases"][0]["state"][k] in "Gg" for k in links), \
         "phase 0: the ego's axis green"

@@ -4,20 +4,22 @@ never moves."""
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 
+import libsumo
 import numpy as np
 from support import REPO_ROOT
 
 from crossroads.evaluation.scenario import load_scenario, to_world_config
+from crossroads.network import catalogue
+from crossroads.sim.config import WorldConfig
+from crossroads.sim.traffic import NO_TRAFFIC
 from crossroads.sim.world import World
 
 sys.path.insert(0, str(REPO_ROOT / "benchmarks"))
 from blocked_lane import StandingDriver, bars_every_path, drive  # noqa: E402
 
 NOMINAL_LEFT = REPO_ROOT / "scenarios" / "nominal" / "c_three_lane-left.yaml"
-# a seed of the nominal left turn whose queue ahead of the ego never moves in 60 s (measured with
-# the rule controller, APG + shield and the standing driver alike, docs/tried/world.md)
-HELD_SEED = 556745865
 
 
 def test_a_vehicle_bars_every_path_only_where_the_paths_have_not_parted() -> None:
@@ -34,11 +36,29 @@ def test_a_vehicle_bars_every_path_only_where_the_paths_have_not_parted() -> Non
         assert not bars_every_path(float(end[0]), float(end[1]), 1.8, paths)
 
 
-def test_a_standing_ego_times_out_behind_a_queue_that_never_moves() -> None:
-    """Seed 556745865: with the ego standing far back the vehicle across its paths stands all 60 s,
-    in SUMO, the world's own gridlock."""
-    spec = load_scenario(NOMINAL_LEFT)
-    with World(to_world_config(spec, NOMINAL_LEFT.parent)) as world:
-        end = drive(world, StandingDriver(), HELD_SEED)
-    assert end.outcome == "timeout" and end.held_from_start
+class _StandingBehindABlocker(StandingDriver):
+    """The standing driver, with a car put 8 m before the ego's stop line on its first step that
+    never moves: a scene built to be held from the start."""
+
+    def __init__(self, world: World) -> None:
+        self.world = world
+
+    def decide(self, observation):  # noqa: ANN001, ANN201
+        session, lane = self.world.session, self.world.start_lane
+        if "blocker" not in session.vehicle_ids and observation.time_s < 0.05:
+            exit_edge = self.world.junction.lanes[self.world.candidates[0].exit_lane].edge_id
+            libsumo.route.add(f"blocker{self.world.episode_seed}", [lane.edge_id, exit_edge])
+            libsumo.vehicle.add("blocker", f"blocker{self.world.episode_seed}", typeID="car", depart="now",
+                                departLane=str(lane.index), departPos=str(lane.length_m - 8.0), departSpeed="0")
+        elif "blocker" in session.vehicle_ids:
+            session.set_speed("blocker", 0.0)
+        return super().decide(observation)
+
+
+def test_a_standing_ego_times_out_behind_a_vehicle_that_never_moves() -> None:
+    config = replace(WorldConfig(net_file=catalogue.build("c_three_lane"), task="left"),
+                     demand=NO_TRAFFIC, warmup_s=0.0, timeout_s=12.0)
+    with World(config) as world:
+        end = drive(world, _StandingBehindABlocker(world), seed=3)
+    assert end.outcome == "timeout" and end.held_from_start and end.blocker == "blocker"
     assert end.blocker_last_moved_s == -np.inf and end.blocker_ahead_m is not None and end.blocker_ahead_m > 10.0

@@ -41,6 +41,8 @@ def test_reload_mid_batch_reattaches(studio_url: str, browser: Any, artifacts: P
     assert page.input_value("input[name=name]") == "e2e-reload"
     assert page.input_value("input[name=runs]") == "30"
     assert page.input_value("select[name=task]") == "straight"
+    assert page.inner_text("#saved").startswith("Saved as scenario #")  # unedited since: still saved
+    assert page.locator("#run").is_enabled()
     cancel = page.locator("#cancel")
     assert cancel.is_visible() and cancel.get_attribute("data-batch") == str(batch_id)
     page.screenshot(path=str(artifacts / "14-reloaded-running.png"), full_page=True)

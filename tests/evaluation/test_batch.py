@@ -17,10 +17,10 @@ from crossroads.evaluation.batch import BatchRunner, create_batch_for, summarize
 from crossroads.evaluation.scenario import ScenarioSpec, load_scenario, run_seeds
 from crossroads.store import Store, crud, open_store
 
-TINY = {  # a short, quiet episode: ~80 steps, a fraction of a second
+TINY = {  # a short, quiet episode: ~90 steps, a fraction of a second
     "version": 1, "name": "tiny-left", "intersection": "a_single_lane", "task": "left",
     "traffic": {"vehicles_per_hour": 100, "cyclists_per_hour": 0, "pedestrians_per_hour": 0},
-    "warmup_s": 5.0, "timeout_s": 8.0, "runs": 4, "seed": 7,
+    "warmup_s": 5.0, "timeout_s": 12.0, "runs": 4, "seed": 7,
 }
 
 

@@ -4,14 +4,16 @@ Every traffic-light junction with three or more car approaches of ../shared/real
 example nets inside the eclipse-sumo wheel and of four nets built here (a T junction with a
 bike-less approach and a short last edge, five legs, a divided road's joined pair of nodes, a
 light with two programs): every approach × task either has candidates a car can drive or is
-refused in one line. Then a few seeded episodes per task on a selection of them, with the rule
-controller and SUMO's own driver: no ``error`` outcome, no collision before t = 2 s. The full
-corpus at 20 seeds is ``benchmarks/real_nets.py`` (minutes; its figures are in the report).
+refused in one line. Every walk the demand may draw for a pedestrian is one SUMO routes. Then a
+few seeded episodes per task on a selection of them, with the rule controller and SUMO's own
+driver: no ``error`` outcome, no collision before t = 2 s. The full corpus at 20 seeds is
+``benchmarks/real_nets.py`` (minutes; its figures are in the report).
 """
 
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -19,6 +21,8 @@ from crossroads.network.junction import read_junction
 from crossroads.planning import PlanningError, plan_task
 from crossroads.planning.curves import MAX_CURVATURE
 from crossroads.planning.drivable import road_check
+from crossroads.sim.sumo import SumoSession
+from crossroads.sim.traffic import DemandPlan, Departure, walkable_pairs, write_plan
 from support import REPO_ROOT
 
 sys.path.insert(0, str(REPO_ROOT / "benchmarks"))
@@ -90,6 +94,35 @@ def test_a_refused_task_says_why_and_the_rest_drive(cases: list[Case]) -> None:
         for c in plan.require():
             curve = c.segment == "curve"
             assert not c.exceeds_limit and road.problem(c.points[curve], c.heading[curve]) is None
+
+
+def test_every_walk_the_demand_may_draw_is_one_sumo_routes(cases: list[Case], tmp_path: Path) -> None:
+    """Pedestrians walk only between sidewalks the junction's walking areas and crossings join
+    (sim/traffic.py ``walkable_pairs``): every such walk of every junction with sidewalks and
+    crossings, all departing at once, and SUMO departs each one (a walk it cannot route stops the
+    run: "No connection found"). Ingolstadt's 335525545, whose two sidewalk groups no crossing
+    joins, is among them."""
+    checked = set()
+    for case in cases:
+        junction = read_junction(case.net, case.junction_id)
+        if not (junction.crossings and junction.sidewalks):
+            continue
+        walks = {lane.edge_id for lane in junction.sidewalks}
+        legs = [a.incoming_edge for a in junction.approaches if a.incoming_edge in walks]
+        targets = [a.outgoing_edge for a in junction.approaches if a.outgoing_edge in walks]
+        pairs = [(e, t) for e, reach in walkable_pairs(junction, legs, targets).items() for t in reach]
+        assert pairs, case.name
+        plan = DemandPlan(tuple(Departure(f"ped{k}", "pedestrian", 0.0, e, t, depart_pos_m=0.0, arrival_pos_m=0.0)
+                                for k, (e, t) in enumerate(pairs)))
+        routes = write_plan(plan, tmp_path / f"{len(checked)}.rou.xml")
+        with SumoSession().start(case.net, [routes], seed=0) as sim:
+            departed = 0
+            for _ in range(2):
+                sim.step()
+                departed += len(sim.departed_last_step)
+            assert departed == len(pairs), case.name
+        checked.add(case.name)
+    assert "sumo-fkk_in/ingolstadt:335525545" in checked and len(checked) >= 10, checked
 
 
 @pytest.mark.parametrize("name", EPISODE_CASES)

@@ -23,7 +23,7 @@ from crossroads.sim.world import World  # noqa: E402
 from crossroads.viz.playback import (  # noqa: E402
     MARKER_CLASS, Playback, PlaybackServer, fig7_series, junction_of, y_range)
 from crossroads.viz.viewer import (  # noqa: E402
-    ABNORMAL, KIND_COLOURS, LiveRecorder, Viewer, frame_of_observation, node_name)
+    ABNORMAL, COLLIDED, KIND_COLOURS, LiveRecorder, Viewer, collided_id, frame_of_observation, node_name)
 from support import REPO_ROOT  # noqa: E402
 
 SCENARIO = REPO_ROOT / "scenarios" / "nominal" / "a_single_lane-left.yaml"
@@ -119,6 +119,29 @@ def test_viewer_marks_abnormal_actors_and_removes_leavers(server: viser.ViserSer
         viewer.remove()
 
 
+def test_viewer_marks_the_participant_the_collision_names(server: viser.ViserServer, trace: Trace) -> None:
+    """The outcome "hit vehicle veh58" marks veh58, not an abnormal participant beside it."""
+    assert collided_id({"kind": "collision", "detail": "hit vehicle veh58"}) == "veh58"
+    assert collided_id({"kind": "collision", "detail": "hit pedestrian ped.3#1"}) == "ped.3#1"
+    assert collided_id({"kind": "timeout", "detail": "still driving after 6 s"}) is None
+    viewer = Viewer(server, junction_of(trace), trace.header["candidates"])
+    try:
+        viewer.mark_collision("veh58")
+        viewer.show_frame(_frame(0, [_car("veh58", 0.0), _car("veh64", 4.0, abnormal=True)]))
+        assert tuple(viewer.actor_handle("veh58").color) == COLLIDED
+        assert "veh58: hit by the ego" in viewer.mark_handle("veh58").text
+        assert tuple(viewer.actor_handle("veh64").color) == ABNORMAL
+        assert viewer.mark_handle("veh64").text == "⚠ veh64: abnormal"
+        viewer.show_frame(_frame(1, [_car("veh58", 1.0, abnormal=True)]))  # both: one label says both
+        assert viewer.mark_handle("veh58").text == "✖ veh58: hit by the ego (abnormal)"
+        viewer.mark_collision(None)
+        viewer.show_frame(_frame(2, [_car("veh58", 1.0)]))
+        assert viewer.mark_handle("veh58") is None
+        assert tuple(viewer.actor_handle("veh58").color) == KIND_COLOURS["vehicle"]
+    finally:
+        viewer.remove()
+
+
 def test_frame_of_observation_matches_the_trace(trace: Trace) -> None:
     spec = load_scenario(SCENARIO)
     config = replace(to_world_config(spec), warmup_s=15.0, timeout_s=6.0)
@@ -176,6 +199,19 @@ def test_playback_advances_scrubs_and_steps(server: viser.ViserServer, trace: Tr
         series = fig7_series(trace)
         assert set(series) == {"t", "speed", "steering", "acceleration", "speed_mode"}
         assert len(player.plots["speed"].data[1]) == len(trace)
+    finally:
+        player.close()
+
+
+def test_playback_marks_the_hit_participant(server: viser.ViserServer, trace_file: Path, tmp_path: Path) -> None:
+    hit = Trace.load(trace_file)
+    victim = str(hit.frame(0)["participants"][0]["id"])
+    hit.header["result"] = {**hit.header["result"], "kind": "collision", "detail": f"hit vehicle {victim}"}
+    player = Playback(server, Trace.load(hit.save(tmp_path / "hit.trace.npz")))
+    try:
+        assert player.viewer.collided_id == victim
+        assert f"hit **{victim}**" in player.info.content
+        assert tuple(player.viewer.actor_handle(victim).color) == COLLIDED
     finally:
         player.close()
 

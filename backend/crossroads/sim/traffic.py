@@ -293,7 +293,8 @@ def walkable_pairs(junction: Junction, from_edges: list[str], to_edges: list[str
 
 def build_plan(junction: Junction, demand: TrafficDemand, *, seed: int,
                duration_s: float) -> DemandPlan:
-    """The demand of a junction for ``duration_s`` [s], drawn from ``seed`` (pure, no files)."""
+    """The demand of a junction for ``duration_s`` [s], drawn from ``seed`` (pure: it writes
+    nothing, starts no SUMO, and reads only the pedestrian ties of the junction's net file)."""
     rng = np.random.default_rng(seed)
     deps: list[Departure] = []
     notes: list[str] = []

@@ -68,17 +68,18 @@ SPAWN_CLEAR_BEHIND_S = 1.0
 # The start zone: for the ego's first START_ZONE_S nobody enters the stretch of road around its
 # start, neither inserted by SUMO nor changing lanes into it; a driver who has just appeared can
 # avoid neither. Why: on bs3d's short approach edge SUMO inserted a car at the edge's start 2.8 m
-# (centres) behind the ego at 7.6 m/s, a collision 0.1 s into the episode, and on other nets a car
-# in the next lane changed into the gap the clearing (SPAWN_*) had just opened. The zone runs along
-# the ego's lead-in from START_ZONE_S of driving at its lane's speed limit (plus SPAWN_CLEARANCE_M)
-# behind the ego to the cleared box ahead of it, START_ZONE_HALF_WIDTH_LANES lanes to either side
-# of its lane's centre. For START_ZONE_S: (1) no vehicle or cyclist departs on an edge that starts
-# inside the zone (their departures are left out of the episode's demand), and any still waiting to
-# depart there at the ego's entry is removed; (2) every vehicle and cyclist in the zone, or close
-# enough behind to reach it at the speed limit, has lane changing off (SUMO lane-change mode 0),
-# and its own mode back after. (A vehicle further back cannot reach the zone in that time.)
-START_ZONE_S = 2.0
-START_ZONE_HALF_WIDTH_LANES = 2.5  # the ego's lane and two on each side
+# (centres) behind the ego at 7.6 m/s, a collision 0.1 s into the episode (seed 673228719), and a
+# car in the next lane changed into the gap the clearing (SPAWN_*) had just opened (issue 36).
+# The zone runs along the ego's lead-in from START_ZONE_S of driving at its lane's speed limit
+# (plus SPAWN_CLEARANCE_M) behind the ego to the cleared box ahead of it, and
+# START_ZONE_HALF_WIDTH_LANES lanes to either side of its lane's centre. For START_ZONE_S:
+# (1) no vehicle or cyclist departs on an edge that starts inside the zone (their departures are
+# left out of the episode's demand), and any still waiting to depart there at the ego's entry is
+# removed; (2) every vehicle and cyclist in the zone, or close enough behind to reach it in time
+# (at the speed limit, or its own speed if faster), has lane changing off (SUMO lane-change mode
+# 0), and its own mode back after; one further back cannot reach the zone in that time.
+START_ZONE_S = 2.0  # [s]
+START_ZONE_HALF_WIDTH_LANES = 2.5  # [lane widths] the ego's lane and two on each side
 FRONT_CORRIDOR_HALF_WIDTH_M = 1.75  # [m] "in front of the ego": within half a lane of its axis
 FRONT_LOOKAHEAD_M = 30.0  # [m] how far ahead the congestion check looks for a front vehicle
 FRONT_HEADING_TOLERANCE_RAD = math.pi / 4  # [rad] a front vehicle heads within this of the ego
@@ -283,7 +284,7 @@ class World:
             self._gridlocks.update(self.session)
         self.signal_offset_s = apply_start(self.session, self.program, *self.start_phase)
         x, y, heading = self._start_pose()
-        self._hold_start_zone(x, y, heading, cfg.ego_start.speed_mps)  # first: _clear_spawn steps SUMO
+        self._hold_start_zone(x, y, heading)  # first: _clear_spawn steps SUMO, which inserts
         self._clear_spawn(x, y, heading, cfg.ego_start.speed_mps)
         self.session.add_ego(EGO_ID, list(self.placement.route_edges),
                              depart_lane=self.placement.depart_lane, sumo_driver=sumo_driver)
@@ -346,7 +347,7 @@ class World:
                      if d.kind == "pedestrian" or d.from_edge not in edges or not begin <= d.depart_s <= end)
         return plan if len(kept) == len(plan.departures) else replace(plan, departures=kept)
 
-    def _hold_start_zone(self, x: float, y: float, heading: float, speed: float) -> None:
+    def _hold_start_zone(self, x: float, y: float, heading: float) -> None:
         """Keep the start zone (START_ZONE_S) free as the ego enters at ``x``, ``y``: remove those
         still waiting to depart on its edges, and turn lane changing off for every vehicle and
         cyclist in it or able to reach it in time (each one's own mode is restored by

