@@ -40,7 +40,7 @@ from crossroads.evaluation.policies import load_controller, parse_policy  # noqa
 from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.controller import Controller, Decision  # noqa: E402
 from crossroads.planning import CandidatePath  # noqa: E402
-from crossroads.sim.blocking import HELD_FROM_S, bars_every_path  # noqa: E402,F401 (re-exported)
+from crossroads.sim.blocking import HELD_FROM_S, bars_every_path, nearest_barrier  # noqa: E402,F401 (re-exported)
 from crossroads.sim.world import STOPPED_SPEED_MPS, Observation, World  # noqa: E402
 
 
@@ -86,15 +86,12 @@ def drive(world: World, driver: Controller, seed: int) -> RunEnd:
     if outcome.kind != "timeout":
         return RunEnd(seed, outcome.kind, None, None, None)
     snap = obs.participants
-    path = world.candidates[0]  # a blocker bars them all: along any one of them is as good
-    ego_s = path.project(float(obs.ego[0]), float(obs.ego[1])).s_m
-    ahead = sorted((gap, k) for k in range(len(snap))
-                   if snap.kind[k] == "vehicle"
-                   and bars_every_path(float(snap.x[k]), float(snap.y[k]), float(snap.width[k]), world.candidates)
-                   and (gap := path.project(float(snap.x[k]), float(snap.y[k])).s_m - ego_s) > 0.0)
-    if not ahead:
+    vehicles = [(k, float(snap.x[k]), float(snap.y[k]), float(snap.width[k]))
+                for k in range(len(snap)) if snap.kind[k] == "vehicle"]
+    found = nearest_barrier((float(obs.ego[0]), float(obs.ego[1])), vehicles, world.candidates)
+    if found is None:
         return RunEnd(seed, outcome.kind, None, None, None)
-    gap, row = ahead[0]
+    row, gap = found
     pid = str(snap.ids[row])
     return RunEnd(seed, outcome.kind, pid, last_moved.get(pid, -np.inf), gap)
 

@@ -29,7 +29,8 @@ GREEN_S: Final = 60.0  # [s] green of the ego's axis
 YELLOW_S: Final = 3.0  # [s] yellow after every green
 RED_S: Final = 40.0  # [s] red seen by the ego's approach
 # [s] (choice) an all-red after every yellow, as real signals give: a left-turner waiting inside
-# the junction clears before the cross traffic starts (without it, none did before the next green)
+# the junction clears before the cross traffic starts (without it, the left-turner at the head of
+# c_three_lane's queue was seen standing on through the cross axis' green)
 ALL_RED_S: Final = 2.0
 # [s] (choice) the cross axis' green: AR2/G33/Y3/AR2, so the ego still sees R40
 CROSS_GREEN_S: Final = RED_S - YELLOW_S - 2.0 * ALL_RED_S

@@ -27,6 +27,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal, NamedTuple
 
+from crossroads.evaluation.background import BackgroundJob
 from crossroads.evaluation.executors import (
     EpisodeReport,
     EpisodeTask,
@@ -169,7 +170,7 @@ class _Plan(NamedTuple):
     passed: int
 
 
-class BatchRunner:
+class BatchRunner(BackgroundJob[BatchResult]):
     """Runs (or resumes) one stored batch. :meth:`run` blocks; :meth:`start` runs it in a
     background thread; :meth:`cancel` stops it soon (runs in flight are dropped and run again
     on resume); :attr:`progress` may be read from any thread.
@@ -177,11 +178,14 @@ class BatchRunner:
     ``faults`` is a test hook: run index → "raise" | "kill" injected into that episode.
     """
 
+    _error_type = BatchError
+
     def __init__(self, store: Store, batch_id: int, *, workers: int | None = None,
                  ray_address: str | None = None, data_dir: str | Path | None = None,
                  on_progress: ProgressCallback | None = None,
                  faults: Mapping[int, FaultKind] | None = None,
                  executor: Executor | None = None) -> None:
+        super().__init__(f"batch {batch_id}")
         self.store = store
         self.batch_id = batch_id
         self.executor = executor or make_executor(workers=workers, ray_address=ray_address)
@@ -192,11 +196,7 @@ class BatchRunner:
         self.data_dir = Path(data_dir)
         self.on_progress = on_progress
         self.faults = dict(faults or {})
-        self._cancel = threading.Event()
         self._lock = threading.Lock()
-        self._thread: threading.Thread | None = None
-        self._summary: BatchResult | None = None
-        self._exception: BaseException | None = None
         self._progress = Progress(batch_id, "queued", 0, 0)
 
     # --- control ------------------------------------------------------------------------------
@@ -205,39 +205,6 @@ class BatchRunner:
     def progress(self) -> Progress:
         with self._lock:
             return self._progress
-
-    def cancel(self) -> None:
-        self._cancel.set()
-
-    @property
-    def cancelled(self) -> bool:
-        return self._cancel.is_set()
-
-    def start(self) -> threading.Thread:
-        """Run in a background thread; returns at once."""
-        if self._thread is not None:
-            raise BatchError(f"batch {self.batch_id} was started already")
-        self._thread = threading.Thread(target=self._run_in_thread, daemon=True,
-                                        name=f"crossroads-batch-{self.batch_id}")
-        self._thread.start()
-        return self._thread
-
-    def _run_in_thread(self) -> None:
-        try:
-            self.run()
-        except BaseException as exc:  # noqa: BLE001 - kept for wait()
-            self._exception = exc
-
-    def wait(self, timeout: float | None = None) -> BatchResult | None:
-        """Wait for a started batch; its summary (None on timeout). Re-raises its exception."""
-        if self._thread is None:
-            raise BatchError("the batch was not started")
-        self._thread.join(timeout)
-        if self._thread.is_alive():
-            return None
-        if self._exception is not None:
-            raise self._exception
-        return self._summary
 
     # --- running ------------------------------------------------------------------------------
 

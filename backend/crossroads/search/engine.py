@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from crossroads.evaluation.background import BackgroundJob
 from crossroads.evaluation.scenario import ScenarioSpec, content_hash
 from crossroads.search import records
 from crossroads.search.collection import write_failure
@@ -164,15 +165,18 @@ def distinct_key(spec: ScenarioSpec) -> str:
     return content_hash(spec.model_copy(update={"name": "failure", "description": ""}))
 
 
-class SearchRunner:
+class SearchRunner(BackgroundJob[dict[str, Any]]):
     """Runs (or resumes) one stored search. :meth:`run` blocks; :meth:`start` runs it in a
     background thread; :meth:`cancel` stops it soon (episodes in flight are dropped and run again
     on resume); :attr:`progress` may be read from any thread."""
+
+    _error_type = SearchError
 
     def __init__(self, store: Store, search_id: int, *, workers: int | None = None,
                  ray_address: str | None = None, data_dir: str | Path | None = None,
                  on_progress: SearchProgressCallback | None = None,
                  shrink_limit: int | None = None) -> None:
+        super().__init__(f"search {search_id}")
         self.store = store
         self.shrink_limit = shrink_limit  # shrink only the first this many failures (None: all)
         self.search_id = search_id
@@ -184,12 +188,8 @@ class SearchRunner:
             data_dir = Settings().data_dir
         self.data_dir = Path(data_dir)
         self.on_progress = on_progress
-        self._cancel = threading.Event()
         self._lock = threading.Lock()
         self._active: set[Any] = set()  # the BatchRunners in flight (to cancel them)
-        self._thread: threading.Thread | None = None
-        self._exception: BaseException | None = None
-        self._summary: dict[str, Any] | None = None
         self._progress = SearchProgress(search_id, "queued", "search", 0, 0, 0, 0, 0, 0, None)
 
     # --- control ------------------------------------------------------------------------------
@@ -200,45 +200,11 @@ class SearchRunner:
             return self._progress
 
     def cancel(self) -> None:
-        self._cancel.set()
+        super().cancel()
         with self._lock:
             active = list(self._active)
         for runner in active:
             runner.cancel()
-
-    @property
-    def cancelled(self) -> bool:
-        return self._cancel.is_set()
-
-    @property
-    def running(self) -> bool:
-        """Started in the background and not finished yet."""
-        return self._thread is not None and self._thread.is_alive()
-
-    def start(self) -> threading.Thread:
-        if self._thread is not None:
-            raise SearchError(f"search {self.search_id} was started already")
-        self._thread = threading.Thread(target=self._run_in_thread, daemon=True,
-                                        name=f"crossroads-search-{self.search_id}")
-        self._thread.start()
-        return self._thread
-
-    def _run_in_thread(self) -> None:
-        try:
-            self.run()
-        except BaseException as exc:  # noqa: BLE001 - kept for wait()
-            self._exception = exc
-
-    def wait(self, timeout: float | None = None) -> dict[str, Any] | None:
-        """Wait for a started search; its summary (None on timeout). Re-raises its exception."""
-        if self._thread is None:
-            raise SearchError("the search was not started")
-        self._thread.join(timeout)
-        if self._thread.is_alive():
-            return None
-        if self._exception is not None:
-            raise self._exception
-        return self._summary
 
     def _update(self, **changes: Any) -> None:
         with self._lock:

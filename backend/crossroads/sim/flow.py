@@ -60,17 +60,18 @@ def measure_flow(junction: Junction, demand: TrafficDemand, work_dir: Path, *, s
     removed: Counter[str] = Counter()
     breaker = GridlockBreaker(junction, gridlock_stand_s)
     with SumoSession().start(junction.net_file, [routes], seed=seed) as session:
+        alive: set[str] = set()
         for _ in range(int(round((warmup_s + window_s) / SIM_STEP_S))):
-            before = set(session.vehicle_ids) | set(session.person_ids)
             session.step()
             counting = session.time_s > warmup_s
+            gone = alive  # who was there before this step and is not any more: arrived or removed
             for r in breaker.update(session):
+                gone.discard(r.participant)
                 if counting:
                     removed[kind_of.get(r.participant, "vehicle")] += 1
-                before.discard(r.participant)
+            alive = set(session.vehicle_ids) | set(session.person_ids)
             if counting:
-                alive = set(session.vehicle_ids) | set(session.person_ids)
-                for pid in before - alive:  # arrived this step
+                for pid in gone - alive:
                     crossed[kind_of.get(pid, "vehicle")] += 1
     lanes = sum(len(a.entrance_lanes) for a in junction.approaches)
     per_lane_h = 3600.0 / window_s / max(lanes, 1)

@@ -659,10 +659,10 @@ class SumoSession:
         libsumo.vehicle.setSpeedMode(ego_id, SPEED_MODE_DEFAULT)
         libsumo.vehicle.setLaneChangeMode(ego_id, LANE_CHANGE_MODE_DEFAULT)
 
-    @_sumo_errors
     def has_vehicle(self, vehicle_id: str) -> bool:
-        """Whether SUMO has ``vehicle_id`` on the road now (it leaves at its route's end)."""
-        return vehicle_id in libsumo.vehicle.getIDList()
+        """Whether ``vehicle_id`` (an ego or any other vehicle) is still in the simulation: the
+        departed and arrived lists :meth:`step` keeps, no call into SUMO."""
+        return vehicle_id in self._egos or vehicle_id in self._vehicles
 
     @_sumo_errors
     def move_ego(

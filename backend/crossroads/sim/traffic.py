@@ -88,17 +88,17 @@ class TrafficDemand:
     # densities these cyclists and the left-turners waited on each other inside the junction: on
     # c_three_lane 34-48 % of the cyclists got through (measured with sim/flow.py), and the
     # queues behind stood for minutes. Without left turns (their share rides straight on or
-    # right instead, as many cities route cyclists' left turns indirectly) 90-102 % did. The
-    # cyclist count stays the paper's.
+    # right instead, as many cities route cyclists' left turns indirectly) 98-102 % did (two
+    # seeds, 900 s each). The cyclist count stays the paper's.
     cyclist_left_turns: bool = False
     # (choice) Vehicles' turns: the approach's rate (per entrance lane × its entrance lanes)
     # split over its turns by these shares (left, straight, right), each turn over its lanes
     # levelling their loads (lane_split); None: each entrance lane its own rate, split evenly
     # over that lane's turns. With None a left-only lane carries 400 left-turners an hour, while
-    # permissive left turns (SPEC §2) across 600 oncoming vehicles an hour let some 70-100 an
-    # hour through (the gaps and the two that clear in each yellow): on c_three_lane 5-10 % of
-    # them crossed and the queues grew without end (sim/flow.py). Urban left-turn shares of
-    # about a tenth are what such a junction can serve.
+    # permissive left turns (SPEC §2) across 600 oncoming vehicles an hour get through mostly in
+    # the clearance at the end of each green (two left-turners seen clearing there): on
+    # c_three_lane 4-10 % of them crossed in 900 s and the queues grew without end (sim/flow.py).
+    # Urban left-turn shares of about a tenth are closer to what such a junction can serve.
     turn_shares: tuple[float, float, float] | None = DEFAULT_TURN_SHARES
 
     def __post_init__(self) -> None:
