@@ -57,7 +57,7 @@ def main() -> None:
     parser.add_argument("--policy", default="rule", help="'rule' or a model (.pt), e.g. models/apg.pt")
     args = parser.parse_args()
 
-    from crossroads.evaluation.scenario import load_scenario
+    from crossroads.scenario.spec import load_scenario
     from crossroads.store import open_store
 
     spec = load_scenario(args.scenario).model_copy(

@@ -36,12 +36,14 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from crossroads.constants import JERK_MAX  # noqa: E402
-from crossroads.evaluation.policies import load_controller, parse_policy  # noqa: E402
-from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
+from crossroads.evaluation.policies import load_controller  # noqa: E402
+from crossroads.policy.ref import parse_policy  # noqa: E402
+from crossroads.scenario.spec import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.controller import Controller, Decision  # noqa: E402
 from crossroads.planning import CandidatePath  # noqa: E402
 from crossroads.sim.blocking import HELD_FROM_S, bars_every_path, nearest_barrier  # noqa: E402,F401 (re-exported)
-from crossroads.sim.world import STOPPED_SPEED_MPS, Observation, World  # noqa: E402
+from crossroads.sim.world import STOPPED_SPEED_MPS, World  # noqa: E402
+from crossroads.sim.observation import Observation  # noqa: E402
 
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -24,7 +25,8 @@ import torch
 from crossroads.idc.decision import IdcController
 from crossroads.idc.rule_based import RuleBasedController
 from crossroads.idc.state import build_states, select_others
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
+from crossroads.rl.checkpoint import load_networks
 from crossroads.rl.networks import make_networks
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.world import World
@@ -66,7 +68,8 @@ def main() -> None:
     torch.set_num_threads(1)
 
     if args.checkpoint:
-        controller = IdcController.from_checkpoint(args.checkpoint)
+        networks, _ = load_networks(Path(args.checkpoint))
+        controller = IdcController(networks.policy, networks.value, name=Path(args.checkpoint).stem)
     else:
         torch.manual_seed(0)
         nets = make_networks("apg", hidden_layers=5, hidden_units=256, preview=args.preview)

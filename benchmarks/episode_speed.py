@@ -26,7 +26,7 @@ import numpy as np  # noqa: E402
 
 from crossroads.idc.rule_based import RuleBasedController  # noqa: E402
 from crossroads.idc.state import build_states, select_others  # noqa: E402
-from crossroads.network import catalogue  # noqa: E402
+from crossroads.intersections import catalogue  # noqa: E402
 from crossroads.sim.config import WorldConfig  # noqa: E402
 from crossroads.sim.sumo import SumoSession  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from crossroads.evaluation.scenario import load_scenario, run_seeds
+from crossroads.scenario.spec import load_scenario, run_seeds
 from crossroads.gym import CrossroadsEnv
 from crossroads.gym.observation import idc_view
 from crossroads.gym.reward import RewardConfig, step_reward

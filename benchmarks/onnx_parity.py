@@ -22,8 +22,8 @@ from collections import Counter
 from pathlib import Path
 
 from crossroads.evaluation.executors import EpisodeReport, EpisodeTask, ProcessExecutor, WorkerJob
-from crossroads.evaluation.scenario import load_scenario, run_seeds
 from crossroads.rl.onnx_export import export_policy_onnx
+from crossroads.scenario.spec import load_scenario, run_seeds
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -45,22 +45,22 @@ from pathlib import Path
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 from crossroads.evaluation.episode import run_episode  # noqa: E402
-from crossroads.evaluation.network_checks import network_problems  # noqa: E402
-from crossroads.evaluation.scenario import (  # noqa: E402
-    ScenarioSpec,
-    run_seeds,
-    to_world_config,
-    validate_scenario,
-)
 from crossroads.evaluation.sumo_driver import SumoDriverPolicy  # noqa: E402
 from crossroads.idc.rule_based import RuleBasedController  # noqa: E402
-from crossroads.network.build import find_netconvert  # noqa: E402
+from crossroads.intersections.build import find_netconvert  # noqa: E402
 from crossroads.network.junction import JunctionError, read_junction  # noqa: E402
 from crossroads.network.model import TASKS, Junction  # noqa: E402
 from crossroads.network.netxml import TRAFFIC_LIGHT_TYPES, read_net_xml  # noqa: E402
 from crossroads.planning import PlanningError, plan_task  # noqa: E402
 from crossroads.planning.curves import MAX_CURVATURE  # noqa: E402
 from crossroads.planning.drivable import road_check  # noqa: E402
+from crossroads.scenario.network_checks import network_problems  # noqa: E402
+from crossroads.scenario.spec import (  # noqa: E402
+    ScenarioSpec,
+    run_seeds,
+    to_world_config,
+    validate_scenario,
+)
 from crossroads.sim.world import World  # noqa: E402
 
 REPO_ROOT = Path(__file__).resolve().parents[1]

@@ -28,9 +28,10 @@ import numpy as np
 
 from crossroads.constants import L_F, L_R, STEER_MAX
 
-from crossroads.evaluation.policies import load_controller, parse_policy
+from crossroads.evaluation.policies import load_controller
+from crossroads.policy.ref import parse_policy
 from crossroads.idc.controller import Controller
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.network.model import TASKS
 from crossroads.sim.config import EgoStart, WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC

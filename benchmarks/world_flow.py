@@ -5,7 +5,7 @@
         [--flow-window 900] [--workers 2] [--json OUT.json]
 
 Three measurements of the world as built (sim/gridlock.py, the signal program of
-network/build.py, the demand of sim/traffic.py), on seeds drawn from ``--base-seed`` (not the
+intersections/build.py, the demand of sim/traffic.py), on seeds drawn from ``--base-seed`` (not the
 scenarios' own base seed 0, so that nothing here was tuned on the seeds it reports):
 
 1. per scenario (default: the 18 nominal and the 6 paper scenarios) and policy (default: ``sumo``,
@@ -35,9 +35,9 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 from crossroads.evaluation.episode import run_episode  # noqa: E402
 from crossroads.evaluation.metrics import wilson_interval  # noqa: E402
-from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.evaluation.sumo_driver import SUMO_POLICY, SumoDriverPolicy  # noqa: E402
 from crossroads.network.junction import read_junction  # noqa: E402
+from crossroads.scenario.spec import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.sim.flow import measure_flow  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 
@@ -50,7 +50,8 @@ DEFAULT_BASE_SEED = 20261206  # differs from the scenarios' own base seed (0)
 def _controller(policy: str):  # noqa: ANN202 - a Controller or SUMO's driver
     if policy == SUMO_POLICY:
         return SumoDriverPolicy()
-    from crossroads.evaluation.policies import load_controller, parse_policy
+    from crossroads.evaluation.policies import load_controller
+    from crossroads.policy.ref import parse_policy
     return load_controller(parse_policy(policy))
 
 

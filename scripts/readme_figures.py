@@ -8,8 +8,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from crossroads.network import catalogue
-from crossroads.network.resolve import open_junction
+from crossroads.intersections import catalogue
+from crossroads.intersections.resolve import open_junction
 from crossroads.planning import plan_candidates
 from crossroads.viz.figure import save_intersection_figure
 

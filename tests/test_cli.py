@@ -148,7 +148,7 @@ def test_net_check_lists_the_movements_and_fails_above_max_offset() -> None:
 
 
 def test_run_refuses_a_start_that_does_not_fit_as_evaluate_does(tmp_path: Path) -> None:
-    """One validation for run, evaluate and the API (evaluation.network_checks): the start is
+    """One validation for run, evaluate and the API (scenario.network_checks): the start is
     checked along the road before the lane, and refused naming the longest start that fits."""
     scenario = tmp_path / "far.yaml"
     scenario.write_text(f"version: 1\nname: far\nintersection: {{net: {COLOGNE1_NET}}}\ntask: left\n"

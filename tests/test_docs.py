@@ -5,7 +5,8 @@
 * Every "SPEC §N" the code cites is a numbered section of docs/paper.md, the page that says what
   the paper's numbers are.
 * No tracked text or file name refers to a past work period by its number (the word "session"
-  followed by one): the repository says what holds and why, its history is git's.
+  followed by one, or a numbered training folder, var/train<N>): the repository says what
+  holds and why, its history is git's.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from support import REPO_ROOT
 
 SPEC_CITATION = re.compile(r"SPEC ?§ ?(\d+)")
 PAPER_SECTION = re.compile(r"^## (\d+)\. ", re.MULTILINE)
-WORK_PERIOD = re.compile(r"\bsessions? ?\d+", re.IGNORECASE)
+WORK_PERIOD = re.compile(r"\bsessions? ?\d+|\btrain\d+", re.IGNORECASE)
 TEXT_SUFFIXES = {".py", ".md", ".txt", ".yaml", ".yml", ".toml", ".ini", ".cfg", ".sh", ".json", ".ts",
                  ".js", ".html", ".css", ".csv", ""}
 

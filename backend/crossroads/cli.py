@@ -49,14 +49,14 @@ def _user_errors() -> tuple[type[BaseException], ...]:
 
     from crossroads.evaluation.batch import BatchError
     from crossroads.evaluation.executors import ExecutorError
-    from crossroads.evaluation.policies import PolicyError
+    from crossroads.evaluation.stored_batches import UnknownBatchError
+    from crossroads.intersections.resolve import NetworkNotFoundError
     from crossroads.network.junction import JunctionError
-    from crossroads.network.resolve import NetworkNotFoundError
     from crossroads.planning import PlanningError
+    from crossroads.policy.ref import PolicyError
     from crossroads.search.engine import SearchError
     from crossroads.sim.sumo import SumoError
     from crossroads.store import StoreError
-    from crossroads.store.reporting import UnknownBatchError
     from crossroads.validation import SpecError
 
     return (SpecError, JunctionError, NetworkNotFoundError, PlanningError, ValidationError,
@@ -138,7 +138,7 @@ def serve(
 @reports_errors
 def net_list() -> None:
     """The catalogue of intersections, one name a line."""
-    from crossroads.network import catalogue
+    from crossroads.intersections import catalogue
 
     for name in catalogue.list_intersections():
         typer.echo(name)
@@ -151,7 +151,7 @@ def net_build(
     out: Annotated[Path, typer.Option("-o", "--out", help="directory to write the .net.xml into")],
 ) -> None:
     """Build an intersection into a SUMO network (netconvert), cached by the spec's hash."""
-    from crossroads.network import catalogue
+    from crossroads.intersections import catalogue
 
     source = Path(ref) if ref.endswith((".yaml", ".yml")) else ref
     spec = catalogue.load_spec(source)
@@ -183,7 +183,7 @@ def net_check(
     marked. The catalogue's builds draw the internal lanes along the paths.
     """
     from crossroads.constants import INTERNAL_LANE_OFFSET_WARN_M
-    from crossroads.network.resolve import open_junction
+    from crossroads.intersections.resolve import open_junction
     from crossroads.planning.internal_lanes import internal_lane_offsets, worst_offset
 
     junc = open_junction(ref, junction)
@@ -226,7 +226,7 @@ def paths(
     plot: Annotated[Path | None, typer.Option(metavar="OUT.png", help="draw the intersection and candidates")] = None,
 ) -> None:
     """The candidate paths of a task: one per reachable target lane (Bezier, SPEC §1)."""
-    from crossroads.network.resolve import open_junction
+    from crossroads.intersections.resolve import open_junction
     from crossroads.planning import plan_task
 
     junc = open_junction(ref, junction)
@@ -274,10 +274,11 @@ def run(
 ) -> None:
     """Run one episode of a scenario and print its outcome and travel time."""
     from crossroads.evaluation.episode import run_episode
-    from crossroads.evaluation.network_checks import internal_lane_warning, network_problems
-    from crossroads.evaluation.policies import load_controller, parse_policy
-    from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config
+    from crossroads.evaluation.policies import load_controller
     from crossroads.evaluation.trace import TraceRecorder
+    from crossroads.policy.ref import parse_policy
+    from crossroads.scenario.network_checks import internal_lane_warning, network_problems
+    from crossroads.scenario.spec import load_scenario, run_seeds, to_world_config
     from crossroads.sim.world import World
     from crossroads.validation import SpecError
 
@@ -315,8 +316,8 @@ def export_command(
         min=0, max=2**31 - 1, help="episode seed (default: the scenario's first run seed)")] = None,
 ) -> None:
     """Write one episode's SUMO bundle (net, seeded routes, additionals, .sumocfg) for sumo-gui."""
-    from crossroads.evaluation.scenario import load_scenario, run_seeds
     from crossroads.evaluation.sumo_bundle import export_bundle
+    from crossroads.scenario.spec import load_scenario, run_seeds
 
     spec = load_scenario(scenario)
     episode_seed = run_seeds(spec, 1)[0] if seed is None else seed
@@ -350,8 +351,8 @@ def evaluate(
     from tqdm import tqdm
 
     from crossroads.evaluation.batch import BatchRunner, create_batch_for
-    from crossroads.evaluation.network_checks import batch_warnings, network_problems
-    from crossroads.evaluation.scenario import load_scenarios
+    from crossroads.scenario.network_checks import batch_warnings, network_problems
+    from crossroads.scenario.spec import load_scenarios
     from crossroads.settings import Settings
     from crossroads.store import open_store
     from crossroads.validation import SpecError
@@ -435,9 +436,9 @@ def report(
 ) -> None:
     """Tables like the paper's (with its numbers beside), plots and failed episodes' traces."""
     from crossroads.evaluation.report import render_html, write_csv
+    from crossroads.evaluation.stored_batches import report_rows
     from crossroads.settings import Settings
     from crossroads.store import open_store
-    from crossroads.store.reporting import report_rows
 
     store = open_store(Settings(db_url=db).database_url)
     try:

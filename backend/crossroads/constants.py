@@ -123,7 +123,7 @@ EGO_WIDTH_M: Final = 2.0  # [m]
 # junction model and its drivers' leaders see it there; beyond half a car's width that place is
 # more than half a car from where the ego drives. netconvert's own lanes on the catalogue's nets
 # ran up to 2.55 m off the left turns (docs/tried/world.md); its builds now draw them
-# along the paths (network/build.py), but a user's net keeps its own.
+# along the paths (intersections/build.py), but a user's net keeps its own.
 INTERNAL_LANE_OFFSET_WARN_M: Final = EGO_WIDTH_M / 2.0  # [m]
 # (choice) How far before the stop line the stop profile reaches 0: the paths are of the ego's
 # centre, and the judge (and the law) mean its front bumper. Without it the stop mode brought the

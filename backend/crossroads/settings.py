@@ -1,6 +1,14 @@
-"""Settings of the running service, from the command line or CROSSROADS_* environment variables.
+"""Every ``CROSSROADS_*`` environment variable Crossroads reads, and the service's settings.
 
-Fails fast: a bad value is an error naming the setting when the service starts, not later.
+:class:`Settings`: the running service's settings, from the command line or ``CROSSROADS_*``
+variables; it fails fast: a bad value is an error naming the setting when the service starts, not
+later. The library's own variables, read when they are needed (a test or a worker may set them):
+
+* ``CROSSROADS_CACHE_DIR``: where built intersections are cached (:func:`net_cache_dir`);
+* ``CROSSROADS_SCENARIOS_DIR``: the root of the scenario files and the catalogue (:func:`scenarios_dir`);
+* ``CROSSROADS_FRONTEND_DIST``: the studio page's build the API serves (:func:`frontend_dist_dir`);
+* ``CROSSROADS_FORK_EPISODES=0``: batch workers run each episode themselves instead of in a forked
+  child (:func:`fork_episodes`).
 """
 
 from __future__ import annotations
@@ -14,6 +22,8 @@ from typing import Annotated, Any
 from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
+ENV_PREFIX = "CROSSROADS_"
+REPOSITORY_ROOT = Path(__file__).resolve().parents[2]  # this file: <repo>/backend/crossroads/settings.py
 DEFAULT_DATA_DIR = Path.home() / ".local" / "share" / "crossroads"
 SUPPORTED_DB_SCHEMES = ("sqlite", "postgresql")
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")  # what a browser on this machine calls it
@@ -49,7 +59,7 @@ def _default_workers() -> int:
 class Settings(BaseSettings):
     """Where the studio listens and where it keeps its data."""
 
-    model_config = SettingsConfigDict(env_prefix="CROSSROADS_", extra="forbid", frozen=True)
+    model_config = SettingsConfigDict(env_prefix=ENV_PREFIX, extra="forbid", frozen=True)
 
     host: str = Field("127.0.0.1", description="interface the API listens on")
     port: int = Field(8000, ge=1, le=65535, description="TCP port of the API")
@@ -142,3 +152,30 @@ class Settings(BaseSettings):
         if host_name(self.host) not in WILDCARD_HOSTS:
             names.add(host_name(self.host))
         return frozenset(names)
+
+
+# --- the library's environment -----------------------------------------------------------------
+
+
+def net_cache_dir() -> Path:
+    """Directory holding cached intersection builds: ``$CROSSROADS_CACHE_DIR`` or ``~/.cache/crossroads/nets``."""
+    env = os.environ.get(f"{ENV_PREFIX}CACHE_DIR")
+    return Path(env).expanduser() if env else Path.home() / ".cache" / "crossroads" / "nets"
+
+
+def scenarios_dir() -> Path:
+    """Root of the scenario files: ``$CROSSROADS_SCENARIOS_DIR`` or ``<repo>/scenarios``."""
+    env = os.environ.get(f"{ENV_PREFIX}SCENARIOS_DIR")
+    return Path(env).expanduser() if env else REPOSITORY_ROOT / "scenarios"
+
+
+def frontend_dist_dir() -> Path:
+    """The studio page's build: ``$CROSSROADS_FRONTEND_DIST`` or ``<repo>/frontend/dist``."""
+    configured = os.environ.get(f"{ENV_PREFIX}FRONTEND_DIST")
+    return Path(configured) if configured else REPOSITORY_ROOT / "frontend" / "dist"
+
+
+def fork_episodes() -> bool:
+    """Whether batch workers fork a child per episode where the platform can (unless
+    ``CROSSROADS_FORK_EPISODES=0``; see ``crossroads.evaluation.executors``)."""
+    return os.environ.get(f"{ENV_PREFIX}FORK_EPISODES", "1") != "0"

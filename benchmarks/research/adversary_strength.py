@@ -27,7 +27,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from crossroads.constants import JERK_MAX, XI_RANGES  # noqa: E402
-from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
+from crossroads.scenario.spec import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import PAD_DISTANCE_M, path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, to_batch  # noqa: E402

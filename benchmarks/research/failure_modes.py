@@ -42,8 +42,8 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 from crossroads.constants import CONGESTION_STOP_S, EGO_LENGTH_M, JERK_MAX, PENALTY_RHO  # noqa: E402
-from crossroads.evaluation.policies import parse_policy  # noqa: E402
-from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config  # noqa: E402
+from crossroads.policy.ref import parse_policy  # noqa: E402
+from crossroads.scenario.spec import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import pad_participant, path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, StateBatch, to_batch  # noqa: E402

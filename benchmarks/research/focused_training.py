@@ -28,7 +28,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import torch  # noqa: E402
 
-from crossroads.evaluation.scenario import ScenarioSpec, load_scenario, run_seeds, to_world_config  # noqa: E402
+from crossroads.scenario.spec import ScenarioSpec, load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.rl.buffer import ReplayBuffer, Samples, StateBatch, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402

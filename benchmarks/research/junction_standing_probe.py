@@ -19,7 +19,7 @@ import numpy as np
 
 from crossroads.constants import JERK_MAX, SIM_STEP_S
 from crossroads.idc.rule_based import RuleBasedController
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.world import World
 

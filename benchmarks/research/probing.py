@@ -27,8 +27,10 @@ from crossroads.planning import CandidatePath
 from crossroads.rl.buffer import Samples
 from crossroads.rl.model import IDCModel, Rollout, StateBatch
 from crossroads.rl.sampler import observation_sample
-from crossroads.sim.sumo import Snapshot
-from crossroads.sim.world import Observation, Outcome, World
+from crossroads.sim.snapshot import Snapshot
+from crossroads.sim.observation import Observation
+from crossroads.sim.outcome import Outcome
+from crossroads.sim.world import World
 
 HORIZON = 25  # the paper's T, the training model's rollout length
 STANDING_MPS = 0.5  # a participant slower than this stands

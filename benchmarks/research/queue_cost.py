@@ -32,7 +32,7 @@ from crossroads.constants import HORIZON_T, JERK_MAX, PENALTY_RHO  # noqa: E402
 from crossroads.constants import EGO_LENGTH_M  # noqa: E402
 from crossroads.idc.state import N_OTHERS, path_tensors  # noqa: E402
 from crossroads.rl.augment import CAR_LENGTH_M  # noqa: E402
-from crossroads.network import catalogue  # noqa: E402
+from crossroads.intersections import catalogue  # noqa: E402
 from crossroads.rl.buffer import StateBatch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.model import IDCModel  # noqa: E402

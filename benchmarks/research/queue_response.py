@@ -31,7 +31,7 @@ import torch  # noqa: E402
 
 from crossroads.constants import EGO_LENGTH_M  # noqa: E402
 from crossroads.idc.state import N_OTHERS, pad_participant, path_tensors  # noqa: E402
-from crossroads.network import catalogue  # noqa: E402
+from crossroads.intersections import catalogue  # noqa: E402
 from crossroads.planning.routes import CandidatePath  # noqa: E402
 from crossroads.rl.augment import CAR_LENGTH_M, CAR_WIDTH_M  # noqa: E402  (the training copies' car)
 from crossroads.rl.checkpoint import load_networks  # noqa: E402

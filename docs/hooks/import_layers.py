@@ -24,17 +24,22 @@ LAYERS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
                      ("geometry", "pure geometry: Bezier curves, polylines, frames"),
                      ("arrays", "one maths for numpy and torch"),
                      ("validation", "validation helpers: errors that name the field"),
-                     ("settings", "the service's settings (`CROSSROADS_*`)"),
+                     ("settings", "the service's settings and every `CROSSROADS_*` variable"),
                      ("cli_errors", "how the command line reports errors"))),
-    ("road network", (("network", "SUMO nets read into junctions; the catalogue and its builds"),)),
+    ("road network", (("network", "SUMO nets read into junctions: approaches, lanes, crossings"),)),
     ("planning", (("planning", "candidate paths (Bezier) and their speed profiles"),)),
+    ("intersections", (("intersections", "intersection specs built into SUMO nets, the catalogue, "
+                                         "a name or a net file resolved"),)),
     ("perception", (("perception", "the sensors and their noise"),)),
-    ("simulation", (("sim", "the SUMO world (the only code that imports libsumo), f_ego, traffic"),)),
-    ("control", (("idc", "the IDC state, utility, constraints, light logic, rule controller, decision, shield"),)),
+    ("simulation", (("sim", "the SUMO world (only sim/sumo.py imports libsumo), f_ego, traffic, and "
+                            "the control contract: observation, snapshot, outcome"),)),
+    ("control", (("idc", "the IDC state, utility, constraints, light logic, rule controller, decision, "
+                         "shield; imports no libsumo"),)),
     ("learning", (("rl", "the differentiable model, the networks, APG/DPG training, export"),)),
-    ("scenarios", (("scenario", "the scenario format"),)),
-    ("evaluation and store", (("evaluation", "episodes, batches, metrics, reports"),
-                              ("store", "the results database"))),
+    ("what a user names", (("scenario", "the scenario format and its checks against a network"),
+                           ("policy", "policy references (one grammar) and their identities"))),
+    ("store", (("store", "the results database"),)),
+    ("evaluation", (("evaluation", "episodes, batches, metrics, reports, controllers by reference"),)),
     ("tools on evaluation", (("gym", "the Gymnasium environment"), ("search", "the search for failures"))),
     ("viewing", (("viz", "the 3D view"),)),
     ("service", (("api", "the HTTP API and the studio page"),)),
@@ -76,6 +81,8 @@ def _imported(tree: ast.AST, rel: Path) -> set[str]:
                 modules = [".".join(["crossroads", *base, *([node.module] if node.module else [])])]
                 if not node.module:
                     modules = [f"{modules[0]}.{alias.name}" for alias in node.names]
+            elif node.module == "crossroads":  # from crossroads import settings
+                modules = [f"crossroads.{alias.name}" for alias in node.names]
             else:
                 modules = [node.module or ""]
         else:
@@ -102,11 +109,20 @@ def layer_table(imports: dict[tuple[str, str], set[str]]) -> str:
     return "\n".join(rows)
 
 
-def exceptions_list(imports: dict[tuple[str, str], set[str]]) -> str:
-    """One line per import against the layers: upward, sideways, or from or to an unplaced package."""
-    lines = []
+def violations(imports: dict[tuple[str, str], set[str]]) -> list[tuple[str, str, list[str]]]:
+    """(importer, imported, files) of every import against the layers: upward, sideways, or from
+    or to a package :data:`LAYERS` does not place (``__version__`` of the package root aside)."""
+    found = []
     for (source, target), files in sorted(imports.items()):
+        if target == "__version__":
+            continue
         low, high = _level(source), _level(target)
         if low is None or high is None or high >= low:
-            lines.append(f"- `{source}` → `{target}` ({', '.join(sorted(files))})")
+            found.append((source, target, sorted(files)))
+    return found
+
+
+def exceptions_list(imports: dict[tuple[str, str], set[str]]) -> str:
+    """One line per import against the layers (:func:`violations`), or "none"."""
+    lines = [f"- `{source}` → `{target}` ({', '.join(files)})" for source, target, files in violations(imports)]
     return "\n".join(lines) if lines else "None: every import goes from a higher layer to a lower one."

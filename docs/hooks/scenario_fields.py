@@ -2,7 +2,7 @@
 
 A page that holds the line ``<!-- scenario-fields -->`` gets, in its place, one table row per
 field of a scenario file (nested fields as ``ego.start_distance_m``) with its type, default,
-bounds and description, read from :func:`crossroads.evaluation.scenario.scenario_json_schema`.
+bounds and description, read from :func:`crossroads.scenario.spec.scenario_json_schema`.
 So the guide lists exactly what the validator accepts, whoever changes the format next.
 """
 
@@ -21,7 +21,7 @@ def on_page_markdown(markdown: str, **_: Any) -> str:
     """Replace the marker with the generated table (pages without it are returned as they are)."""
     if MARKER not in markdown:
         return markdown
-    from crossroads.evaluation.scenario import scenario_json_schema  # only where the table is asked for
+    from crossroads.scenario.spec import scenario_json_schema  # only where the table is asked for
 
     return markdown.replace(MARKER, fields_table(scenario_json_schema()))
 

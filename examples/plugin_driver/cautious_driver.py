@@ -22,7 +22,7 @@ import numpy as np
 
 from crossroads.idc.controller import Decision
 from crossroads.planning import CandidatePath
-from crossroads.sim.world import Observation
+from crossroads.sim.observation import Observation
 
 CRUISE_MPS = 6.0  # [m/s] the speed it holds
 LOOKAHEAD_M = 6.0  # [m] pure-pursuit look-ahead

@@ -14,9 +14,10 @@ export class ApiError extends Error {
   }
 }
 
-/** A JSON request (a FormData body goes as multipart); throws ApiError with the API's detail. */
+/** A JSON request (a FormData body goes as multipart, a Blob as its type); throws ApiError with the
+ *  API's detail. */
 export async function api(path: string, init?: RequestInit): Promise<Json> {
-  const json = init?.body != null && !(init.body instanceof FormData);
+  const json = typeof init?.body === "string"; // a FormData or Blob body says its own type
   const res = await fetch(path, { ...init, headers: json ? { "Content-Type": "application/json" } : undefined });
   const text = await res.text();
   let body: Json = null;

@@ -1,6 +1,8 @@
 // Batches: run one (progress over Server-Sent Events, cancel), its results and episodes, the list
 // of batches and the side-by-side comparison.
 import { $, api, esc, Json, messageOf, pct, post, secs } from "./api";
+import { picked, pickedChanged } from "./compare";
+import { TRAVEL_TIME, showEpisodes } from "./episodes";
 import { clearErrors, showErrors } from "./form";
 
 const FINISHED = ["done", "cancelled", "failed"];
@@ -152,12 +154,6 @@ function warningsHtml(b: Json): string {
   return `<ul id="batch-warnings" class="hint warning">${warnings.map((w) => `<li>Warning: ${esc(w)}</li>`).join("")}</ul>`;
 }
 
-const TRAVEL_TIME = "from the ego crossing its stop line to its leaving the intersection, over the passed runs";
-const CLOSEST_CENTRE = "closest distance between the ego's centre and any other road user's centre over the episode "
-  + "(centre to centre, not a gap between outlines: a collision can happen at 3–5 m)";
-const CLOSEST_GAP = "smallest gap between the ego's outline and that of a road user it was closing in on (0 or less: touching)";
-const metres = (x: number | null | undefined): string => (x == null ? "–" : `${x.toFixed(2)} m`);
-
 function summaryHtml(b: Json): string {
   const s = b.summary;
   if (!s) return `<p>No results yet.</p>${warningsHtml(b)}`;
@@ -174,31 +170,15 @@ function summaryHtml(b: Json): string {
       <div><dt title="${esc(TRAVEL_TIME)}">Travel time (passed)</dt><dd id="travel-time">${tt}</dd></div>
     </dl>
     <p class="hint" id="travel-time-hint">Travel time: ${esc(TRAVEL_TIME)}.</p>
+    <p class="reports">Report of this batch: <a id="report-html" href="/api/reports?batch=${b.id}" target="_blank" rel="noopener">HTML</a>
+      · <a id="report-csv" href="/api/reports?batch=${b.id}&amp;format=csv" download="batch${b.id}-report.csv">CSV</a></p>
     <table class="counts"><thead><tr><th>Outcome</th><th>Episodes</th></tr></thead><tbody>${counts}</tbody></table>`;
-}
-
-function episodeRow(e: Json, gaps: boolean): string {
-  return `
-    <tr class="${e.passed ? "passed" : "failed"}">
-      <td>${e.run_index}</td><td>${e.seed}</td><td>${esc(e.outcome)}</td><td>${secs(e.travel_time_s)}</td>
-      ${gaps ? `<td class="gap">${metres(e.min_gap_m)}</td>` : ""}<td class="centre">${metres(e.min_distance_m)}</td>
-      <td title="${esc(e.error_message ?? "")}">${esc(e.detail)}</td>
-      <td>${e.has_trace
-        ? `<a class="playback" target="_blank" rel="noopener" href="/api/playback/${e.batch_id}/${e.run_index}">3D playback</a>`
-        : '<span class="hint">no trace kept</span>'}</td>
-    </tr>`;
 }
 
 export async function showBatch(batchId: number): Promise<void> {
   const [b, episodes] = await Promise.all([api(`/api/batches/${batchId}`), api(`/api/batches/${batchId}/episodes`)]);
   $("#summary").innerHTML = summaryHtml(b);
-  const gaps = (episodes as Json[]).some((e) => "min_gap_m" in e); // where the API gives the footprint gap
-  $("#episodes").innerHTML = episodes.length
-    ? `<table><thead><tr><th>Run</th><th>Seed</th><th>Outcome</th><th title="${esc(TRAVEL_TIME)}">Travel time</th>
-      ${gaps ? `<th title="${esc(CLOSEST_GAP)}">Closest gap</th>` : ""}<th title="${esc(CLOSEST_CENTRE)}">Closest centre distance</th><th>Detail</th><th></th></tr></thead>
-      <tbody>${(episodes as Json[]).map((e) => episodeRow(e, gaps)).join("")}</tbody></table>
-      <p class="hint" id="episode-hints">Travel time: ${esc(TRAVEL_TIME)}. Closest centre distance: ${esc(CLOSEST_CENTRE)}.${gaps ? ` Closest gap: ${esc(CLOSEST_GAP)}.` : ""}</p>`
-    : '<p class="hint">No episodes recorded.</p>';
+  showEpisodes(episodes as Json[]);
 }
 
 // --- the list and the comparison -----------------------------------------------------------------------
@@ -208,7 +188,8 @@ function batchRow(b: Json): string {
   const cancel = FINISHED.includes(b.status) ? "" : ` <button type="button" data-cancel="${b.id}">Cancel</button>`;
   const warnings: string[] = b.warnings ?? [];
   const warned = warnings.length ? ` <span class="hint warning" title="${esc(warnings.join("\n"))}">(warning)</span>` : "";
-  return `<tr data-id="${b.id}"><td>${b.id}</td><td>${esc(b.scenario)}${warned}</td><td>${esc(b.policy)}</td><td class="status">${esc(status)}</td>
+  const pick = `<input type="checkbox" class="pick" data-pick="${b.id}" aria-label="pick batch #${b.id}"${picked.has(b.id) ? " checked" : ""} />`;
+  return `<tr data-id="${b.id}"><td>${pick}</td><td>${b.id}</td><td>${esc(b.scenario)}${warned}</td><td>${esc(b.policy)}</td><td class="status">${esc(status)}</td>
     <td>${b.progress.done}/${b.progress.total}</td><td><button type="button" data-batch="${b.id}">Show</button>${cancel}</td></tr>`;
 }
 
@@ -249,7 +230,7 @@ export async function refreshBatches(): Promise<Json[]> {
     listTimer = window.setTimeout(() => void refreshBatches().catch(() => undefined), LIST_POLL_MS);
   }
   $("#batches").innerHTML = list.length
-    ? `<table><thead><tr><th>#</th><th>Scenario</th><th>Policy</th><th>Status</th><th>Progress</th><th></th></tr></thead><tbody>${list.map(batchRow).join("")}</tbody></table>`
+    ? `<table><thead><tr><th title="pick for the comparison and the report">Pick</th><th>#</th><th>Scenario</th><th>Policy</th><th>Status</th><th>Progress</th><th></th></tr></thead><tbody>${list.map(batchRow).join("")}</tbody></table>`
     : '<p class="hint">No batches yet.</p>';
   await refreshCompare(list);
   return list;

@@ -3,7 +3,7 @@
 import { field, form } from "./form";
 
 const DRAFT_KEY = "crossroads.form-draft";
-type Draft = Record<string, string | boolean>;
+export type Draft = Record<string, string | boolean>;
 
 /** Every named scenario field, as the form shows it now. */
 function current(): Draft {
@@ -43,4 +43,29 @@ export function applyDraft(draft: Draft, names?: string[]): void {
       el.value = String(value);
     }
   }
+}
+
+const text = (v: unknown): string => (v == null ? "" : String(v));
+
+/** A stored scenario's spec as the form's values (``source``: the intersection select's value). */
+export function specToDraft(spec: Record<string, any>, source: string): Draft { // eslint-disable-line @typescript-eslint/no-explicit-any
+  const over = spec.abnormal?.overspeed;
+  const round = spec.abnormal?.rounding;
+  const draft: Draft = {
+    name: text(spec.name), intersection: source, task: text(spec.task), approach: text(spec.approach),
+    "ego.entrance_lane": text(spec.ego?.entrance_lane), "ego.start_distance_m": text(spec.ego?.start_distance_m),
+    "ego.start_speed_mps": text(spec.ego?.start_speed_mps),
+    "lights.phase": text(spec.lights?.phase), "lights.elapsed_s": text(spec.lights?.elapsed_s ?? 0),
+    "traffic.vehicles_per_hour": text(spec.traffic?.vehicles_per_hour),
+    "traffic.cyclists_per_hour": text(spec.traffic?.cyclists_per_hour),
+    "traffic.pedestrians_per_hour": text(spec.traffic?.pedestrians_per_hour),
+    "overspeed.on": over != null, "rounding.on": round != null,
+    runs: text(spec.runs), seed: text(spec.seed), warmup_s: text(spec.warmup_s), timeout_s: text(spec.timeout_s),
+  };
+  if (over) {
+    draft["abnormal.overspeed.share"] = text(over.share);
+    draft["abnormal.overspeed.excess"] = text(Math.round(Number(over.excess) * 1e6) / 1e4); // percent
+  }
+  if (round) draft["abnormal.rounding.share"] = text(round.share);
+  return draft;
 }

@@ -17,6 +17,13 @@ const select = () => $<HTMLSelectElement>("select[name=intersection]");
 
 export const currentSource = (): Source | undefined => sources.get(select().value);
 
+/** The select's value for a scenario's ``intersection`` (a catalogue name or ``{net}``), if offered. */
+export function sourceKeyOf(ref: Json): string | undefined {
+  if (typeof ref === "string") return sources.has(ref) ? ref : undefined;
+  for (const s of sources.values()) if (typeof s.ref === "object" && s.ref?.net === ref?.net) return s.key;
+  return undefined;
+}
+
 export function catalogueSource(i: Json): Source {
   return { key: i.name, label: i.name, description: i.description ?? "", base: `/api/intersections/${encodeURIComponent(i.name)}`, ref: i.name };
 }

@@ -1,6 +1,7 @@
-// Live run: one episode of the scenario in the form, driven in the 3D view (a viser tab) while it runs.
+// Live run: one episode of the scenario in the form, driven in the 3D view (in the page) while it runs.
 import { $, api, ApiError, esc, Json, messageOf, post, sleep } from "./api";
 import { clearErrors, scenarioBody, showErrors } from "./form";
+import { showViewer } from "./viewer";
 
 const POLL_MS = 1000;
 const FINAL = ["done", "failed", "stopped"];
@@ -23,7 +24,7 @@ function statusText(r: Json): string {
 
 function show(r: Json): void {
   $("#live-status").innerHTML = `live run #${r.id} (seed ${r.seed}): <span class="live-state" data-status="${esc(r.status)}">${esc(statusText(r))}</span>
-    · <a id="live-link" href="${esc(r.url)}" target="_blank" rel="noopener">3D view</a>`;
+    · <a id="live-link" href="${esc(r.url)}" target="_blank" rel="noopener">3D view in a new tab</a>`;
   $<HTMLButtonElement>("#live-stop").hidden = FINAL.includes(r.status);
 }
 
@@ -43,7 +44,7 @@ async function poll(id: number): Promise<void> {
 }
 
 /** Read the run once more when the studio's tab comes back: a background tab's timers (the
- * poll) are throttled while the user watches the 3D view. */
+ * poll) are throttled while the user watches the 3D view in a tab of its own. */
 document.addEventListener("visibilitychange", () => {
   if (document.visibilityState !== "visible" || current == null) return;
   api(`/api/live/${current}`).then(show, () => undefined);
@@ -61,18 +62,15 @@ function liveBody(scenarioId: number | null, policy: string): Json {
 
 export async function startLive(scenarioId: number | null, policy: string): Promise<void> {
   clearErrors();
-  // Opened within the click, so no pop-up blocker stops it; it goes to the viewer once known.
-  const tab = window.open("", "_blank");
   const button = $<HTMLButtonElement>("#live");
   button.disabled = true;
   try {
     const r = await post("/api/live", liveBody(scenarioId, policy));
     current = r.id;
-    if (tab) tab.location.href = r.url;
+    showViewer(r.url, `Live run #${r.id}: ${r.scenario} (seed ${r.seed})`);
     show(r);
     void poll(r.id);
   } catch (e) {
-    tab?.close();
     if (!(e instanceof ApiError && Array.isArray(e.detail))) {
       $("#live-status").textContent = `live run: ${messageOf(e)}`; // e.g. 429: too many running
     } else if (e.detail.some((d: Json) => ["seed", "speed"].includes(d.loc?.[1]))) {

@@ -1,23 +1,57 @@
 // Crossroads studio: the scenario editor, batch runner, live runs and results browser (plain TypeScript).
 import "./style.css";
-import { $, api, Json, post } from "./api";
+import { $, api, esc, Json, post } from "./api";
 import { cancelBatch, reattach, refreshBatches, runBatch, showBatch } from "./batches";
-import { applyDraft, loadDraft, saveDraft } from "./draft";
+import { applyDraft, Draft, loadDraft, saveDraft, specToDraft } from "./draft";
 import { clearErrors, field, form, scenarioBody, showErrors } from "./form";
 import {
   catalogueSource, currentSource, fillApproaches, fillLanes, fillPhases, geometryOf, limitElapsed,
-  setSources, uploadSource,
+  setSources, sourceKeyOf, uploadSource,
 } from "./intersections";
+import { comparePicked, picked, pickedChanged } from "./compare";
+import { initLibrary, openStored, refreshLibrary } from "./library";
 import { startLive, stopLive } from "./live";
 import { fillPolicies, initPolicyUploads } from "./policies";
 import { drawPreview } from "./preview";
 import { initSearches } from "./searches";
 import { uploadNetwork } from "./upload";
+import { initViewer } from "./viewer";
 
 let scenarioId: number | null = null; // the saved scenario the form shows; null once edited
 const policy = () => $<HTMLSelectElement>("#policy").value;
 
 const SAVED_KEY = "crossroads.saved-scenario"; // sessionStorage: the saved scenario the form shows
+const EDITING_KEY = "crossroads.editing"; // sessionStorage: the stored scenario the form came from
+
+/** The stored scenario the form was opened from: its spec keeps the fields the form does not show
+ *  (turn shares, description, …), and ``id`` is set while no batch has run it (Save replaces it). */
+interface Editing { id: number | null; from: number; name: string; base: Json }
+let editing: Editing | null = null;
+
+function setEditing(e: Editing | null): void {
+  editing = e;
+  if (e) sessionStorage.setItem(EDITING_KEY, JSON.stringify(e));
+  else sessionStorage.removeItem(EDITING_KEY);
+  const hint = $("#editing");
+  hint.innerHTML = !e ? ""
+    : e.id != null
+      ? `Editing stored scenario #${e.id} (${esc(e.name)}): Save replaces it. <button type="button" id="save-as-new">Save as a new scenario instead</button>`
+      : `From stored scenario #${e.from} (${esc(e.name)}): Save stores a new scenario.`;
+}
+
+const isObject = (v: unknown): boolean => v != null && typeof v === "object" && !Array.isArray(v);
+
+/** The form's scenario over the one it was opened from: what the form does not show is kept;
+ *  the ego's start and the abnormal traffic are the form's alone (an empty field: the default). */
+function merged(body: Json): Json {
+  if (!editing) return body;
+  const out: Json = { ...editing.base };
+  for (const [k, v] of Object.entries(body)) {
+    out[k] = k !== "ego" && k !== "abnormal" && isObject(v) && isObject(out[k]) ? { ...out[k], ...(v as Json) } : v;
+  }
+  if (!("approach" in body)) delete out.approach;
+  return out;
+}
 
 function showSaved(id: number, name: string): void {
   scenarioId = id;
@@ -30,8 +64,14 @@ async function save(ev: Event): Promise<void> {
   clearErrors();
   $("#save-error").textContent = "";
   try {
-    const s = await post("/api/scenarios", scenarioBody());
+    const body = merged(scenarioBody());
+    const inPlace = editing?.id != null;
+    const s = inPlace
+      ? await api(`/api/scenarios/${editing!.id}`, { method: "PUT", body: JSON.stringify(body) })
+      : await post("/api/scenarios", body);
     showSaved(s.id, s.name);
+    if (editing) setEditing({ id: inPlace ? s.id : null, from: s.id, name: s.name, base: s.spec });
+    void refreshLibrary();
     sessionStorage.setItem(SAVED_KEY, JSON.stringify({ id: s.id, name: s.name }));
   } catch (e) {
     forget();
@@ -118,22 +158,36 @@ function wire(): void {
       await networkChanged("intersection");
     }
   });
-  $("#run").addEventListener("click", () => { if (scenarioId != null) void runBatch(scenarioId, policy()); });
+  $("#run").addEventListener("click", () => {
+    if (scenarioId == null) return;
+    if (editing?.id === scenarioId) setEditing({ ...editing, id: null }); // run: read-only from now on
+    void runBatch(scenarioId, policy()).then(() => refreshLibrary());
+  });
+  $("#editing").addEventListener("click", (ev) => {
+    if ((ev.target as HTMLElement).id === "save-as-new" && editing) setEditing({ ...editing, id: null });
+  });
   $("#cancel").addEventListener("click", () => void cancelBatch(Number($("#cancel").dataset.batch)));
   $("#live").addEventListener("click", () => void startLive(scenarioId, policy()));
   $("#live-stop").addEventListener("click", () => void stopLive());
   $("#refresh").addEventListener("click", () => void refreshBatches());
   $("#batches").addEventListener("click", (ev) => {
     const data = (ev.target as HTMLElement).dataset;
-    if (data.batch) void showBatch(Number(data.batch));
+    if (data.batch) void showBatch(Number(data.batch)).then(() => loadBatchScenario(Number(data.batch)));
     if (data.cancel) void cancelBatch(Number(data.cancel));
   });
+  $("#batches").addEventListener("change", (ev) => {
+    const box = ev.target as HTMLInputElement;
+    if (!box.dataset.pick) return;
+    if (box.checked) picked.add(Number(box.dataset.pick));
+    else picked.delete(Number(box.dataset.pick));
+    pickedChanged();
+  });
+  $("#compare-picked").addEventListener("click", () => void comparePicked());
 }
 
-/** The form as this tab left it (after a reload), else its defaults: the network's choices are
- *  filled in steps, each from the draft's value of the step before. */
-async function restoreForm(): Promise<void> {
-  const draft = loadDraft();
+/** Put ``draft`` in the form: the network's choices are filled in steps, each from the draft's
+ *  value of the step before. */
+async function fillForm(draft: Draft | null): Promise<void> {
   if (draft) applyDraft(draft); // the network's own choices are refilled below, then set again
   await networkChanged("intersection");
   if (!draft) return;
@@ -143,8 +197,34 @@ async function restoreForm(): Promise<void> {
   const source = currentSource();
   if (source) limitElapsed(await geometryOf(source));
   await drawPreview();
+}
+
+/** The form as this tab left it (after a reload), else its defaults. */
+async function restoreForm(): Promise<void> {
+  await fillForm(loadDraft());
   const saved = JSON.parse(sessionStorage.getItem(SAVED_KEY) ?? "null"); // unedited since its save
   if (saved?.id) showSaved(Number(saved.id), String(saved.name));
+  const from = JSON.parse(sessionStorage.getItem(EDITING_KEY) ?? "null");
+  if (from?.base) setEditing(from);
+}
+
+/** Open a stored scenario in the form (the library's Open, a batch's Show). */
+async function openScenario(row: Json, editable: boolean): Promise<void> {
+  const key = sourceKeyOf(row.spec.intersection);
+  if (!key) throw new Error(`scenario #${row.id} names an intersection this studio does not offer`);
+  await fillForm(specToDraft(row.spec, key));
+  clearErrors();
+  saveDraft();
+  setEditing({ id: editable ? row.id : null, from: row.id, name: row.name, base: row.spec });
+  showSaved(row.id, row.name);
+  sessionStorage.setItem(SAVED_KEY, JSON.stringify({ id: row.id, name: row.name }));
+  $("#editor").scrollIntoView({ block: "start" });
+}
+
+/** "Show" on a batch: its results, and its scenario in the form. */
+async function loadBatchScenario(batchId: number): Promise<void> {
+  const b = await api(`/api/batches/${batchId}`);
+  await openStored(b.scenario_id);
 }
 
 async function init(): Promise<void> {
@@ -154,9 +234,11 @@ async function init(): Promise<void> {
   initPolicyUploads();
   fillPolicies(policies as Json[]);
   wire();
+  initViewer();
+  initLibrary(openScenario);
   initSearches(() => scenarioId, policy);
   await egoDefaults();
-  const [, batches] = await Promise.all([restoreForm(), refreshBatches()]);
+  const [, batches] = await Promise.all([restoreForm(), refreshBatches(), refreshLibrary()]);
   await reattach(batches);
 }
 

@@ -44,10 +44,10 @@ async function upload(): Promise<void> {
   status.textContent = file ? `checking ${file.name}…` : "";
   try {
     const p = await api("/api/policies/upload", { method: "POST", body });
+    await refresh(p.name); // offered (and chosen) by the time the status says it is stored
     status.textContent = `${p.name}: stored (sha256 ${String(p.sha256).slice(0, 12)}…, state of ${p.card.signature.state_width} values` +
       `${p.card.signature.value_output ? ", with a path value" : ""}); choose it as the policy of a batch`;
     $<HTMLInputElement>("#policy-file").value = "";
-    await refresh(p.name);
   } catch (e) {
     status.textContent = "";
     showErrors(e, { root: panel, general: status }); // 413/422 name "file", "name" or "card"
@@ -60,8 +60,8 @@ async function remove(name: string): Promise<void> {
   const status = $("#policy-upload-status");
   try {
     await api(`/api/policies/uploads/${encodeURIComponent(name)}`, { method: "DELETE" });
+    await refresh(); // the choice lists it no more by the time the status says so
     status.textContent = `${name}: deleted (the batches that ran it keep their results)`;
-    await refresh();
   } catch (e) {
     showErrors(e, { root: $("#policy-upload"), general: status });
   }

@@ -70,7 +70,7 @@ async function showFailures(searchId: number): Promise<void> {
     const moved = f.off_nominal.map((k: string) => `${esc(k)} = ${esc(Number(f.params[k]).toPrecision(4))}`).join("<br>") || "nominal";
     return `<tr class="failed"><td>${esc(f.name)}</td><td>${esc(f.seed)}</td><td>${esc(f.outcome)}</td>
       <td>${Number(f.distance).toFixed(3)}</td><td>${moved}</td>
-      <td>${f.playback ? `<a class="playback" target="_blank" rel="noopener" href="${esc(f.playback)}">3D playback</a>` : "–"}
+      <td>${f.playback ? `<a class="playback" target="_blank" rel="noopener" href="${esc(f.playback)}" data-batch="${esc(f.batch_id ?? String(f.playback).split("/")[3])}" data-run="0">3D playback</a>` : "–"}
         · <a href="/api/searches/${searchId}/failures/${f.id}/scenario.yaml">scenario file</a>
         · <button type="button" data-save="${f.id}">Save as regression scenario</button></td></tr>`;
   }).join("");

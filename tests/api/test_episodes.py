@@ -50,3 +50,24 @@ def test_no_trace_kept_is_404(client: TestClient, tiny_scenario: dict[str, Any])
     assert client.get(f"/api/episodes/{batch.id}/0").json()["has_trace"] is False
     response = client.get(f"/api/episodes/{batch.id}/0/trace")
     assert response.status_code == 404 and "no trace" in response.json()["detail"]
+
+
+def test_the_closest_footprint_gap_is_kept(client: TestClient, tiny_scenario: dict[str, Any],
+                                           finished_batch: dict[str, Any]) -> None:
+    sid = client.post("/api/scenarios", json={**tiny_scenario, "name": "gap-kept"}).json()["id"]
+    with client.app.state.store.session() as session:
+        batch = crud.create_batch(session=session, scenario=crud.get_scenario(session=session, scenario_id=sid),
+                                  policy=crud.get_or_create_policy(session=session, ref="rule"), runs=2,
+                                  traces="none")
+        crud.record_episode(session=session, batch_id=batch.id, run_index=0, seed=1,
+                            result={"outcome": "collision", "steps": 30, "time_s": 3.0, "min_distance_m": 3.9,
+                                    "min_gap_m": 0.0, "detail": "hit vehicle veh1"})
+        crud.record_episode(session=session, batch_id=batch.id, run_index=1, seed=2,
+                            result={"outcome": "passed", "travel_time_s": 4.0, "steps": 80, "time_s": 8.0,
+                                    "min_distance_m": None, "min_gap_m": float("inf")})
+    hit, alone = client.get(f"/api/batches/{batch.id}/episodes").json()
+    assert (hit["min_gap_m"], hit["min_distance_m"]) == (0.0, 3.9), "touching: no gap, centres 3.9 m apart"
+    assert alone["min_gap_m"] is None, "nobody closed in"
+    # a real batch records the gap its episodes measured
+    recorded = client.get(f"/api/batches/{finished_batch['id']}/episodes").json()
+    assert all("min_gap_m" in e for e in recorded)

@@ -17,7 +17,7 @@ from fastapi.testclient import TestClient
 from crossroads.api.jobs import JobRegistry
 from crossroads.api.main import create_app
 from crossroads.evaluation.batch import Progress
-from crossroads.evaluation.scenario import run_seeds, validate_scenario
+from crossroads.scenario.spec import run_seeds, validate_scenario
 from crossroads.settings import Settings
 from crossroads.store import Store, crud, open_store
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import threading
 import time
-import urllib.request
 from collections.abc import Iterator
 from typing import Any
 
@@ -78,9 +77,10 @@ def test_a_live_run_shows_its_episode_and_ends_with_the_result(
     assert time.monotonic() - started < 5.0, "the episode runs outside the request"
     body = response.json()
     assert body["status"] in ("starting", "waiting", "running") and body["seed"] == 11
-    assert body["url"].endswith(f":{body['port']}/")
-    with urllib.request.urlopen(f"http://127.0.0.1:{body['port']}/", timeout=10) as res:
-        assert res.status == 200, "the viewer answers"
+    assert body["url"] == f"/api/live/{body['id']}/view/", "reached through the API's own port"
+    page = client.get(body["url"])
+    assert page.status_code == 200 and "<html" in page.text.lower(), "the viewer answers"
+    assert live.get(body["id"]).server.get_host() == "127.0.0.1", "the viewer listens on loopback only"
 
     ended = _wait(client, body["id"], FINAL)
     assert ended["status"] == "done", ended

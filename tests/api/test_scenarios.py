@@ -1,4 +1,4 @@
-"""Scenarios: create, read, update, delete, validate, the JSON Schema; invalid input is a 422
+"""Scenarios: create, read, update, delete, validate, the JSON Schema, YAML files out and in; invalid input is a 422
 naming the field, and nothing of it is stored."""
 
 from __future__ import annotations
@@ -6,6 +6,7 @@ from __future__ import annotations
 from typing import Any
 
 import pytest
+import yaml
 from fastapi.testclient import TestClient
 
 from crossroads.store import crud
@@ -190,9 +191,46 @@ def test_ego_start_and_lights_that_fit_the_network(client: TestClient, tiny_scen
     assert spec["lights"] == {"ego": None, "phase": 4, "elapsed_s": 20.0, "program": None}
     assert spec["approach"] == "south_in"
     geometry = client.get("/api/intersections/c_three_lane").json()
-    # walk, pedestrian clearance, yellow, all-red of each axis (network/build.py)
+    # walk, pedestrian clearance, yellow, all-red of each axis (intersections/build.py)
     assert [p["duration_s"] for p in geometry["program"]["phases"]] == [50.0, 10.0, 3.0, 2.0,
                                                                       23.0, 10.0, 3.0, 2.0]
     links = [m["link"] for m in geometry["signal_links"]["south_in"] if m["lane"] == "south_in_4" and m["turn"] == "left"]
     assert links and all(geometry["program"]["phases"][0]["state"][k] in "Gg" for k in links), \
         "phase 0: the ego's axis green"
+
+
+def test_a_scenario_as_a_yaml_file_and_back(client: TestClient, tiny_scenario: dict[str, Any]) -> None:
+    stored = client.post("/api/scenarios", json={**tiny_scenario, "name": "yaml-round-trip"}).json()
+    download = client.get(f"/api/scenarios/{stored['id']}/scenario.yaml")
+    assert download.status_code == 200 and download.headers["content-type"].startswith("application/yaml")
+    assert 'filename="yaml-round-trip.yaml"' in download.headers["content-disposition"]
+    assert download.text.startswith(f"# Crossroads scenario #{stored['id']} (yaml-round-trip)")
+    assert yaml.safe_load(download.text) == stored["spec"]
+    yaml_type = {"content-type": "application/yaml"}
+    again = client.post("/api/scenarios/import", content=download.text, headers=yaml_type)
+    assert again.status_code == 200 and again.json()["id"] == stored["id"], "the same content: the same row"
+    renamed = download.text.replace("name: yaml-round-trip", "name: yaml-imported")
+    imported = client.post("/api/scenarios/import", content=renamed, headers=yaml_type)
+    assert imported.status_code == 201 and imported.json()["name"] == "yaml-imported"
+    assert client.get("/api/scenarios/999999/scenario.yaml").status_code == 404
+
+
+@pytest.mark.parametrize(("text", "loc", "says"), [
+    ("name: [unclosed\n", ["body"], "line 2"),
+    ("- a list\n", ["body"], "mapping"),
+    ("", ["body"], "required"),  # no file at all
+    ("# only a comment\n", ["body"], "empty file"),
+])
+def test_an_import_that_is_not_a_scenario_file(client: TestClient, text: str, loc: list[str], says: str) -> None:
+    response = client.post("/api/scenarios/import", content=text, headers={"content-type": "application/yaml"})
+    assert response.status_code == 422, response.text
+    detail = response.json()["detail"]
+    assert any(d["loc"] == loc and says in d["msg"] for d in detail), detail
+
+
+def test_an_imported_scenario_is_checked_like_a_posted_one(client: TestClient, tiny_scenario: dict[str, Any],
+                                                           field_named: Any) -> None:
+    bad = yaml.safe_dump({**tiny_scenario, "name": "yaml-bad", "runs": 0})
+    response = client.post("/api/scenarios/import", content=bad, headers={"content-type": "application/yaml"})
+    assert field_named(response, "runs")
+    assert not any(s["name"] == "yaml-bad" for s in client.get("/api/scenarios", params={"limit": 1000}).json())

@@ -10,8 +10,8 @@ import libsumo
 import numpy as np
 from support import REPO_ROOT
 
-from crossroads.evaluation.scenario import load_scenario, to_world_config
-from crossroads.network import catalogue
+from crossroads.scenario.spec import load_scenario, to_world_config
+from crossroads.intersections import catalogue
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC
 from crossroads.sim.world import World

@@ -1,12 +1,11 @@
 """The studio end to end in headless chromium: author a scenario with an over-speed injection and
 the ego's start in the page, save it, run a small batch, see its pass rate, open an episode's 3D
-playback; cancel a running batch; upload a SUMO network and drive one episode on it live in the
-3D view."""
+playback in the page (through the studio's own port); cancel a running batch; upload a SUMO
+network and drive one episode on it live in the 3D view."""
 
 from __future__ import annotations
 
 import re
-import urllib.request
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +18,6 @@ pytestmark = pytest.mark.slow
 
 BATCH_TIMEOUT_MS = 100_000  # two short episodes on a loaded 2-core machine
 START_TIMEOUT_MS = 60_000  # a batch's worker processes or a live run's world starting
-VIEWER_RE = re.compile(r"http://127\.0\.0\.1:\d+/")
 
 
 def _open(browser: Any, studio_url: str) -> tuple[Any, list[str]]:
@@ -45,10 +43,30 @@ def _save(page: Any) -> int:
     return int(re.search(r"#(\d+)", page.inner_text("#saved")).group(1))  # type: ignore[union-attr]
 
 
-def _viewer_shot(viewer: Any, path: Path) -> None:
+def _viewer_frame(page: Any, studio_url: str, kind: str) -> Any:
+    """The 3D view's iframe in the studio page, once it shows a viewer of ``kind`` (playback, live)
+    served from the studio's own origin."""
+    page.wait_for_selector("#viewer-panel:not([hidden]) #viewer-frame", timeout=START_TIMEOUT_MS)
+    prefix = f"{studio_url}/api/{kind}/"
+    page.wait_for_function(
+        f"document.querySelector('#viewer-frame').contentWindow.location.href.startsWith('{prefix}')",
+        timeout=START_TIMEOUT_MS)
+    frame = page.frame(url=lambda url: url.startswith(prefix))
+    assert frame is not None and "/view/" in frame.url, frame
+    return frame
+
+
+def _viewer_shot(page: Any, viewer: Any, path: Path) -> None:
     viewer.wait_for_selector("canvas", state="attached", timeout=START_TIMEOUT_MS)
     viewer.wait_for_timeout(3000)  # let the scene arrive over the websocket before the picture
-    viewer.screenshot(path=str(path))
+    page.locator("#viewer-panel").screenshot(path=str(path))
+
+
+def _sockets(page: Any) -> list[str]:
+    """The URLs of the WebSockets the page (its iframes included) opens from now on."""
+    urls: list[str] = []
+    page.on("websocket", lambda ws: urls.append(ws.url))
+    return urls
 
 
 # The playback's uPlot charts as viser registers them: each one's y scale and the frame its
@@ -58,7 +76,7 @@ CHARTS_JS = """() => Object.values(window.__viserTestpoints?.uplots ?? {}).map((
   now: Array.from(chart.data[2]).findIndex((v) => !Number.isNaN(v))}))"""
 
 
-def _step_and_check_charts(viewer: Any, shot: Path) -> None:
+def _step_and_check_charts(page: Any, viewer: Any, shot: Path) -> None:
     """Step the playback: the charts keep their scales (they went blank on every frame but the
     first) and the marker follows the frame."""
     viewer.wait_for_function(f"({CHARTS_JS})().length === 4", timeout=START_TIMEOUT_MS)
@@ -71,7 +89,7 @@ def _step_and_check_charts(viewer: Any, shot: Path) -> None:
     for chart in viewer.evaluate(CHARTS_JS):
         lo, hi = chart["y"]
         assert lo is not None and hi is not None and lo < hi, chart  # NaN reads back as None
-    viewer.screenshot(path=str(shot))
+    page.locator("#viewer-panel").screenshot(path=str(shot))
 
 
 def test_author_run_and_play_back(studio_url: str, browser: Any, artifacts: Path) -> None:
@@ -152,19 +170,22 @@ def test_author_run_and_play_back(studio_url: str, browser: Any, artifacts: Path
     page.wait_for_selector("#compare table.compare")
     page.screenshot(path=str(artifacts / "05-results.png"), full_page=True)
 
+    # The 3D playback opens inside the page, its page and WebSocket through the studio's own port.
+    sockets = _sockets(page)
     link = page.locator("#episodes a.playback").first
     href = link.get_attribute("href")
     assert href and href.startswith("/api/playback/")
-    with page.context.expect_page() as opened:
-        link.click()
-    viewer = opened.value
-    viewer.wait_for_load_state("load", timeout=START_TIMEOUT_MS)
-    assert VIEWER_RE.match(viewer.url)
-    with urllib.request.urlopen(viewer.url, timeout=10) as res:
-        assert res.status == 200
-    _viewer_shot(viewer, artifacts / "06-playback.png")
-    _step_and_check_charts(viewer, artifacts / "06b-playback-stepped.png")
-    viewer.close()
+    pages_before = len(page.context.pages)
+    link.click()
+    viewer = _viewer_frame(page, studio_url, "playback")
+    assert len(page.context.pages) == pages_before, "no new tab"
+    _viewer_shot(page, viewer, artifacts / "06-playback.png")
+    _step_and_check_charts(page, viewer, artifacts / "06b-playback-stepped.png")
+    page.screenshot(path=str(artifacts / "06c-playback-in-page.png"), full_page=True)
+    ws_prefix = studio_url.replace("http://", "ws://") + "/api/playback/"
+    assert sockets and all(url.startswith(ws_prefix) for url in sockets), sockets
+    page.click("#viewer-close")
+    assert page.locator("#viewer-panel").is_hidden()
     assert not console_errors, console_errors
 
 
@@ -231,12 +252,11 @@ def test_upload_a_network_and_drive_it_live(studio_url: str, browser: Any, artif
     page.fill("input[name=warmup_s]", "5")
     page.fill("input[name=timeout_s]", "20")
     page.fill("#live-seed", "5")
-    with page.context.expect_page() as opened:
-        page.click("#live")
-    viewer = opened.value
-    viewer.wait_for_url(VIEWER_RE, timeout=START_TIMEOUT_MS)
-    _viewer_shot(viewer, artifacts / "11-live.png")
-    page.bring_to_front()  # a background tab's timers (the status poll) are throttled
+    sockets = _sockets(page)
+    page.click("#live")
+    viewer = _viewer_frame(page, studio_url, "live")
+    _viewer_shot(page, viewer, artifacts / "11-live.png")
+    assert sockets and all(url.startswith(studio_url.replace("http://", "ws://") + "/api/live/") for url in sockets)
     page.wait_for_selector(".live-state[data-status=running], .live-state[data-status=done]",
                            timeout=START_TIMEOUT_MS)
     page.screenshot(path=str(artifacts / "12-live-status.png"), full_page=True)
@@ -248,7 +268,7 @@ def test_upload_a_network_and_drive_it_live(studio_url: str, browser: Any, artif
             assert not stop.is_visible()
     page.wait_for_selector(".live-state[data-status=stopped], .live-state[data-status=done]",
                            timeout=START_TIMEOUT_MS)
-    viewer.close()
+    page.click("#viewer-close")
 
     # A batch on the uploaded network: the ego's own movement (the left turn from the default
     # approach) has candidate paths that follow SUMO's internal lane within a metre (ρ chosen per

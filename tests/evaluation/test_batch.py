@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 
 from crossroads.cli import app
 from crossroads.evaluation.batch import BatchRunner, create_batch_for, summarize_batch
-from crossroads.evaluation.scenario import ScenarioSpec, load_scenario, run_seeds
+from crossroads.scenario.spec import ScenarioSpec, load_scenario, run_seeds
 from crossroads.store import Store, crud, open_store
 
 TINY = {  # a short, quiet episode: ~90 steps, a fraction of a second

@@ -7,7 +7,7 @@ from dataclasses import replace
 import pytest
 
 from crossroads.evaluation.episode import run_episode
-from crossroads.evaluation.scenario import load_scenario, to_world_config
+from crossroads.scenario.spec import load_scenario, to_world_config
 from crossroads.evaluation.trace import TraceRecorder
 from crossroads.idc.rule_based import RuleBasedController
 from crossroads.sim.traffic import NO_TRAFFIC

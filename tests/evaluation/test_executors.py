@@ -18,7 +18,7 @@ from crossroads.evaluation.executors import (
     ProcessExecutor,
     WorkerJob,
 )
-from crossroads.evaluation.scenario import load_scenario, run_seeds
+from crossroads.scenario.spec import load_scenario, run_seeds
 
 NOMINAL_LEFT = REPO_ROOT / "scenarios" / "nominal" / "c_three_lane-left.yaml"
 # A seed whose SUMO traffic depends on the process's memory: with the rule controller, run first

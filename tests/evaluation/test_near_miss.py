@@ -10,7 +10,7 @@ import pytest
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M
 from crossroads.evaluation.episode import run_episode
 from crossroads.evaluation.near_miss import CONFLICT_RADIUS_M, NearMissTracker
-from crossroads.evaluation.scenario import load_scenario, to_world_config
+from crossroads.scenario.spec import load_scenario, to_world_config
 from crossroads.idc.rule_based import RuleBasedController
 from crossroads.sim.world import World
 from support import REPO_ROOT

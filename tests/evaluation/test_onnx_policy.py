@@ -15,8 +15,9 @@ from crossroads.constants import STATE_DIM
 from crossroads.evaluation.episode import run_episode
 from crossroads.evaluation.executors import EpisodeTask, ProcessExecutor, WorkerJob
 from crossroads.evaluation.onnx_policy import OnnxError, OnnxNetworks, trial_states
-from crossroads.evaluation.policies import PolicyError, load_controller, parse_policy
-from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config
+from crossroads.policy.ref import PolicyError, parse_policy
+from crossroads.evaluation.policies import load_controller
+from crossroads.scenario.spec import load_scenario, run_seeds, to_world_config
 from crossroads.idc.state import DPHI, DV, DY
 from crossroads.sim.world import World
 
@@ -138,3 +139,71 @@ def test_the_shipped_apg_exported_to_onnx_ends_every_episode_as_the_checkpoint(t
                         for r in sorted(reports, key=lambda r: r.run_index)]
     assert results[str(model)] == results[f"onnx:{exported}"]
     assert len(set(results[str(model)])) > 1  # the seeds do differ
+
+
+def test_identical_states_tie_to_the_first_path_however_the_values_round() -> None:
+    """Candidate paths that share their first metres give the same state, hence the same value; a
+    network that rounds row by row (torch's batched float32 products gave row 1 of 3 identical rows
+    a few 1e-7 less, onnxruntime all three the same) must not pick the path: the first one drives."""
+    import torch
+    from torch import nn
+
+    from crossroads.idc.decision import IdcController
+
+    class RowRounding(nn.Module):
+        """Δy², less 1e-7 per row: later rows of equal states look a rounding better."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.weight = nn.Parameter(torch.zeros(0), requires_grad=False)
+
+        def forward(self, states: torch.Tensor) -> torch.Tensor:
+            return states[:, DY] ** 2 - 1e-7 * torch.arange(len(states), dtype=states.dtype)
+
+    class Steer(RowRounding):
+        preview = False
+
+        def mean_action(self, states: torch.Tensor) -> torch.Tensor:
+            return torch.stack([-states[:, DY], torch.zeros(len(states))], dim=-1)
+
+    controller = IdcController(Steer(), RowRounding())
+    shared = np.repeat(trial_states(STATE_DIM, 1), 4, axis=0)
+    shared[:, DY] = 0.1
+    shared[3, DY] = 0.5  # the fourth path has already parted from the others
+    best, _, values = controller.decide_states(shared)
+    assert best == 0 and values[0] == values[1] == values[2] and values[3] > values[0]
+    shared[2, DY] = 0.05  # now a different state, truly nearer its path: it wins by its value
+    best, action, _ = controller.decide_states(shared)
+    assert best == 2 and action[0] == pytest.approx(-0.05)
+
+
+@pytest.mark.slow
+def test_the_shipped_apg_and_its_onnx_export_decide_alike_with_the_shield(tmp_path: Path) -> None:
+    """Step by step on the same observations (the checkpoint driving): the same path, speed mode and
+    shield verdict, actions within float32 rounding, on seeded nominal left turns with three
+    candidate paths that share their first metres (before the tie went to the first path, the two
+    parted on the path at several steps of every episode). The outcome of 50 seeds, each runtime
+    driving: benchmarks/onnx_parity.py --shield."""
+    from crossroads.rl.onnx_export import export_policy_onnx
+
+    model = REPO_ROOT / "models" / "apg.pt"
+    exported = export_policy_onnx(model, tmp_path / "apg.onnx")
+    spec = load_scenario(REPO_ROOT / "scenarios" / "nominal" / "c_three_lane-left.yaml")
+    spec = spec.model_copy(update={"timeout_s": 12.0})
+    checkpoint = load_controller(parse_policy(f"{model}+shield"))
+    onnx_driver = load_controller(parse_policy(f"onnx:{exported}+shield"))
+    steps, braked = 0, 0
+    with World(to_world_config(spec)) as world:
+        assert len(world.candidates) == 3
+        for seed in run_seeds(spec, 4):
+            observation, outcome = world.reset(seed), None
+            checkpoint.reset(world.candidates)
+            onnx_driver.reset(world.candidates)
+            while outcome is None:
+                ours, theirs = checkpoint.decide(observation), onnx_driver.decide(observation)
+                assert (ours.path_index, ours.speed_mode, ours.shield_braking) == (
+                    theirs.path_index, theirs.speed_mode, theirs.shield_braking), (seed, steps)
+                np.testing.assert_allclose(theirs.action, ours.action, atol=1e-4)
+                observation, outcome = world.step(ours.action)
+                steps, braked = steps + 1, braked + bool(ours.shield_braking)
+    assert steps > 200 and braked > 0  # the shield did step in

@@ -10,8 +10,9 @@ import yaml
 
 from crossroads.evaluation.batch import BatchRunner, create_batch_for
 from crossroads.evaluation.episode import run_episode
-from crossroads.evaluation.policies import PolicyError, load_controller, parse_policy
-from crossroads.evaluation.scenario import load_scenario, run_seeds, to_world_config
+from crossroads.policy.ref import PolicyError, parse_policy
+from crossroads.evaluation.policies import load_controller
+from crossroads.scenario.spec import load_scenario, run_seeds, to_world_config
 from crossroads.sim.world import World
 from crossroads.store import Store, crud, open_store
 

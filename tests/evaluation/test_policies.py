@@ -7,8 +7,9 @@ from pathlib import Path
 import pytest
 
 from crossroads.evaluation.sumo_driver import SumoDriverPolicy
-from crossroads.evaluation.policies import PolicyError, PolicyRef, load_controller, parse_policy
-from crossroads.store.crud import policy_identity
+from crossroads.policy.ref import PolicyError, PolicyRef, parse_policy
+from crossroads.evaluation.policies import load_controller
+from crossroads.policy.identity import policy_identity
 
 
 @pytest.mark.parametrize(("text", "ref", "canonical"), [

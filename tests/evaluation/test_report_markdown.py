@@ -37,12 +37,12 @@ def test_rows_without_paper_numbers_and_without_valid_runs() -> None:
 
 def test_warnings_are_listed_before_the_table() -> None:
     warned = BatchRow("cross-left", "rule", "7", summarize([]),
-                      warnings=["internal lanes\nrun 3.15 m off", "second"])
+                      warnings=["internal lanes\nrun up to 3.15 m off", "second"])
     text = render_markdown([warned, BatchRow("cross-left", "apg", "8", summarize([]))])
     lines = text.splitlines()
     table = lines.index(next(line for line in lines if line.startswith("| case |")))
     assert lines[0].startswith("**Warnings**")
     items = [line for line in lines[:table] if line.startswith("- ")]
-    assert items == ["- batch 7 (cross-left, rule): internal lanes run 3.15 m off",  # one line each
+    assert items == ["- batch 7 (cross-left, rule): internal lanes run up to 3.15 m off",  # one line each
                      "- batch 7 (cross-left, rule): second"]
     assert len(lines) - table == 3  # header, rule, one scenario

@@ -13,7 +13,7 @@ import yaml
 from typer.testing import CliRunner
 
 from crossroads.cli import app
-from crossroads.evaluation.scenario import load_scenario, to_world_config
+from crossroads.scenario.spec import load_scenario, to_world_config
 from crossroads.evaluation.sumo_bundle import EpisodeSeeds, export_bundle
 from crossroads.network.junction import read_junction
 from crossroads.sim.abnormal import AbnormalTraffic

@@ -7,7 +7,7 @@ import pytest
 
 from crossroads.evaluation.episode import run_episode
 from crossroads.evaluation.sumo_driver import SumoDriverPolicy
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC, TrafficDemand
 from crossroads.sim.world import EGO_ID, World

@@ -17,7 +17,7 @@ from crossroads.idc.crosswalks import (
     crossing_spans,
     nearest_claimed,
 )
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.world import World
 

@@ -15,14 +15,22 @@ from crossroads.idc.crosswalks import CrossingSpan, crossing_spans
 from crossroads.idc.decision import HELD_CROSSING_RELEASE_STEPS, IdcController
 from crossroads.idc.shield import HOLD_WHEEL
 from crossroads.idc.state import build_states, select_others
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.planning import CandidatePath
+from crossroads.rl.checkpoint import load_networks
 from crossroads.rl.networks import make_networks
 from crossroads.sim.config import SignalStart, WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC
-from crossroads.sim.world import Observation, Perceived, World
+from crossroads.sim.observation import Observation, Perceived
+from crossroads.sim.world import World
 from support import REPO_ROOT
 
+
+
+def shipped_with_shield(model: str) -> IdcController:
+    """A shipped model's networks in the IDC decision with the shield (``--policy models/MODEL+shield``)."""
+    networks, _ = load_networks(REPO_ROOT / "models" / model)
+    return IdcController(networks.policy, networks.value, name=model.removesuffix(".pt") + "+shield", shield=True)
 
 def test_value_picks_the_path_and_policy_gives_the_action() -> None:
     torch.manual_seed(0)
@@ -81,7 +89,7 @@ def test_with_the_shield_a_shipped_model_stands_short_of_a_red_line(model: str) 
     the line on red at 4.7 m/s (docs/tried/world.md, "Red lights"); with the shield, which treats the
     line as a standing obstacle while the light holds the ego, the bumper stands 0.50 m short until
     green (measured: 0.500–0.505 m for APG, 0.501–0.502 m for DPG)."""
-    controller = IdcController.from_checkpoint(REPO_ROOT / "models" / model, shield=True)
+    controller = shipped_with_shield(model)
     config = WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", demand=NO_TRAFFIC,
                          signal_start=SignalStart(ego_light="red"), warmup_s=1.0, timeout_s=60.0)
     gaps_standing_on_red = []
@@ -111,7 +119,7 @@ class ExitCrossingScene(NamedTuple):
 
 @pytest.fixture
 def exit_crossing() -> Iterator[ExitCrossingScene]:
-    controller = IdcController.from_checkpoint(REPO_ROOT / "models" / "apg.pt", shield=True)
+    controller = shipped_with_shield("apg.pt")
     config = WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", demand=NO_TRAFFIC, warmup_s=1.0)
     with World(config) as world:
         obs = world.reset(0)

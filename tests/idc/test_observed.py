@@ -7,9 +7,10 @@ import numpy as np
 from crossroads.idc.observed import observed_others
 from crossroads.idc.rule_based import RuleBasedController
 from crossroads.idc.state import select_others, selected_rows
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.sim.config import WorldConfig
-from crossroads.sim.world import World, participant_curvatures
+from crossroads.sim.world import World
+from crossroads.sim.observation import participant_curvatures
 
 
 def test_the_slots_get_the_curvatures_of_the_participants_in_them() -> None:

@@ -13,7 +13,7 @@ from crossroads.constants import (ACCEL_MAX, ACCEL_MIN, DT_S, EGO_LENGTH_M, JERK
 from crossroads.geometry import wrap_angle
 from crossroads.idc import rule_based as R
 from crossroads.idc.lights import choose_speed_mode
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.planning import plan_candidates
 from crossroads.sim.config import SignalStart, WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC

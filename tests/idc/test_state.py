@@ -241,7 +241,7 @@ def test_the_path_preview_numpy_and_torch_agree_and_leave_the_108_values_alone()
     the path 5-20 m ahead in the ego's frame, its heading and v_ref there."""
     import torch
 
-    from crossroads.network import catalogue
+    from crossroads.intersections import catalogue
     from crossroads.sim.config import WorldConfig
     from crossroads.sim.traffic import NO_TRAFFIC
     from crossroads.sim.world import World
@@ -271,7 +271,7 @@ def test_the_path_preview_numpy_and_torch_agree_and_leave_the_108_values_alone()
 
 def test_the_path_preview_sees_the_turn_ahead() -> None:
     """On the straight before a left turn's stop line, the points 15-20 m ahead lie to the left."""
-    from crossroads.network import catalogue
+    from crossroads.intersections import catalogue
     from crossroads.sim.config import WorldConfig
     from crossroads.sim.traffic import NO_TRAFFIC
     from crossroads.sim.world import World

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from crossroads.constants import INTERNAL_LANE_OFFSET_WARN_M
-from crossroads.network.resolve import open_junction
+from crossroads.intersections.resolve import open_junction
 from crossroads.planning.internal_lanes import internal_lane_offsets, offset_warning, worst_offset
 from support import SUMO_CROSS_NET, sumo_example
 

@@ -8,9 +8,9 @@ from shapely.geometry import LineString, Point
 
 from crossroads.constants import PATH_SAMPLE_SPACING_M, STOP_SHORT_M, V_LIMIT_MPS
 from crossroads.geometry import point_at, polyline_length, project_onto_polyline, wrap_angle
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.network.model import TASKS
-from crossroads.network.resolve import open_junction
+from crossroads.intersections.resolve import open_junction
 from crossroads.planning import plan_candidates
 from crossroads.planning.curves import MAX_CURVATURE
 from crossroads.planning.drivable import road_check

@@ -7,7 +7,7 @@ import pytest
 
 from crossroads.constants import EGO_LENGTH_M
 from crossroads.idc.state import KIND_ROWS, N_OTHERS, pad_participant
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.rl.augment import CAR_LENGTH_M, standing_car_copies, with_standing_car
 from crossroads.rl.buffer import Samples
 from crossroads.sim.config import WorldConfig

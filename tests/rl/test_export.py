@@ -11,7 +11,8 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
-from crossroads.evaluation.policies import load_controller, parse_policy
+from crossroads.evaluation.policies import load_controller
+from crossroads.policy.ref import parse_policy
 from crossroads.rl.checkpoint import find_checkpoint, load_networks
 from crossroads.rl.cli import app
 from crossroads.rl.train import train

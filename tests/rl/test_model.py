@@ -11,7 +11,7 @@ import torch
 from crossroads.idc.constraints import SAFETY_MARGIN_M, penalty, road_constraints, safety_constraints
 from crossroads.idc.state import OTHERS, PathTensors, path_tensors, reference_point, tracking_error
 from crossroads.idc.utility import utility
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.rl.buffer import StateBatch
 from crossroads.rl.model import IDCModel
 from crossroads.sim.config import WorldConfig

@@ -161,7 +161,7 @@ def test_a_run_with_the_path_preview_warm_started_from_one_without_keeps_its_out
     with pytest.raises(ValueError, match="set path_preview"):  # and it cannot be dropped unnoticed
         train(tiny(tmp_path, iterations=1, run_name="narrow", init_from=preview_run))
 
-    from crossroads.network import catalogue
+    from crossroads.intersections import catalogue
     from crossroads.sim.config import WorldConfig
     from crossroads.sim.world import World
     controller = IdcController(nets.policy, nets.value)

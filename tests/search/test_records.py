@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from sqlalchemy.exc import IntegrityError
 
-from crossroads.evaluation.scenario import load_scenario
+from crossroads.scenario.spec import load_scenario
 from crossroads.search import records
 from crossroads.store import Store, crud, open_store
 from crossroads.store.search_tables import SearchTrial

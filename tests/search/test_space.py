@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from crossroads.evaluation.scenario import load_scenario, run_seeds
+from crossroads.scenario.spec import load_scenario, run_seeds
 from crossroads.search.space import (
     draw_seed,
     load_space,

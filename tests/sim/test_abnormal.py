@@ -8,7 +8,7 @@ import pytest
 from shapely.geometry import LineString, Point
 
 from crossroads.constants import SURROUNDING_LIMIT_INSIDE_MPS, SURROUNDING_LIMIT_OUTSIDE_MPS
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.network.junction import read_junction
 from crossroads.sim.abnormal import (
     AbnormalConfig,

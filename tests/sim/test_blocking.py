@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from crossroads.idc.rule_based import RuleBasedController
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.sim.blocking import bars_every_path, held_whole_episode, nearest_barrier
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.network.junction import read_junction
 from crossroads.sim.flow import KindFlow, measure_flow
 from crossroads.sim.traffic import TrafficDemand

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.network.junction import read_junction
 from crossroads.sim.gridlock import GridlockBreaker, internal_lane_prefixes
 from crossroads.sim.sumo import SumoSession

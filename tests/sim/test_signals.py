@@ -21,9 +21,9 @@ from crossroads.constants import (
     RED_S,
     YELLOW_S,
 )
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.network.junction import read_junction
-from crossroads.network.build import find_netconvert
+from crossroads.intersections.build import find_netconvert
 from crossroads.sim.signals import (
     LightAt,
     Phase,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from crossroads.geometry import point_at
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.network.junction import read_junction
 from crossroads.sim.sumo import EGO_LENGTH_M, EGO_WIDTH_M, SumoError, SumoSession, active_session
 from crossroads.sim.traffic import TrafficDemand, write_routes

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.network.junction import read_junction
 from crossroads.sim.sumo import SumoSession
 from crossroads.sim.traffic import (

@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.sim.config import EgoStart, SignalStart, WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC, TrafficDemand
 from crossroads.sim.sumo import LANE_CHANGE_MODE_DEFAULT
@@ -158,7 +158,7 @@ def test_no_follower_is_left_too_close_behind_the_ego_as_it_enters() -> None:
     """Nominal left turn, seed 1705482282: a car 6.1 m behind the ego's start (centres) at 8.3 m/s
     rear-ended it 0.1 s into the episode. A follower within its own 1 s of driving (and the 6 m) is
     removed at entry, so no episode starts in a crash from behind."""
-    from crossroads.evaluation.scenario import load_scenario, to_world_config
+    from crossroads.scenario.spec import load_scenario, to_world_config
     from crossroads.sim.world import SPAWN_CLEAR_BEHIND_S, SPAWN_CLEARANCE_M
     from support import REPO_ROOT
 
@@ -214,7 +214,7 @@ def test_the_start_zone_stays_free_of_insertions_and_lane_changes() -> None:
 
 def test_abnormal_vehicles_of_the_paper_cases_show_in_the_world() -> None:
     """Over-speeding (+50 %) vehicles exceed 30 km/h by well over 30 %; rounding vehicles are flagged."""
-    from crossroads.evaluation.scenario import load_scenario, to_world_config
+    from crossroads.scenario.spec import load_scenario, to_world_config
     from support import REPO_ROOT
 
     for case, kind in (("overspeed-50", "overspeed"), ("rounding-50", "rounding")):

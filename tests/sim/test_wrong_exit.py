@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC
 from crossroads.sim.world import World

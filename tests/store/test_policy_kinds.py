@@ -9,7 +9,7 @@ from alembic import command
 from sqlalchemy import inspect
 from sqlalchemy.exc import IntegrityError
 
-from crossroads.evaluation.scenario import validate_scenario
+from crossroads.scenario.spec import validate_scenario
 from crossroads.store import Store, crud, open_store
 from crossroads.store.db import alembic_config, head_revision
 from crossroads.store.tables import Policy

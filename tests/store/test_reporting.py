@@ -8,7 +8,7 @@ import pytest
 from crossroads.evaluation.report import csv_rows, render_html
 from crossroads.evaluation.report_markdown import render_markdown
 from crossroads.store import Store, crud
-from crossroads.store.reporting import UnknownBatchError, report_rows
+from crossroads.evaluation.stored_batches import UnknownBatchError, report_rows
 
 from store.test_store import make_batch, result
 

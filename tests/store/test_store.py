@@ -14,7 +14,7 @@ from sqlalchemy import func, inspect, select
 from sqlalchemy.exc import IntegrityError
 
 from crossroads.evaluation.episode import EpisodeResult
-from crossroads.evaluation.scenario import ScenarioSpec, content_hash, validate_scenario
+from crossroads.scenario.spec import ScenarioSpec, content_hash, validate_scenario
 from crossroads.store import Store, StoreError, crud, open_store
 from crossroads.store.db import alembic_config, head_revision
 from crossroads.store.tables import Base, Batch, Episode, Scenario, Trace

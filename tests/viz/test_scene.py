@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from crossroads.network import catalogue
-from crossroads.network.resolve import open_junction
+from crossroads.intersections import catalogue
+from crossroads.intersections.resolve import open_junction
 from crossroads.perception.sensors import DEFAULT_SENSORS
 from crossroads.viz.scene import Mesh, dashes, head_colour, junction_scene, sector_mesh, triangulate
 from shapely.geometry import Polygon

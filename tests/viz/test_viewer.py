@@ -16,7 +16,7 @@ import pytest
 viser = pytest.importorskip("viser")
 
 from crossroads.evaluation.episode import run_episode  # noqa: E402
-from crossroads.evaluation.scenario import load_scenario, to_world_config  # noqa: E402
+from crossroads.scenario.spec import load_scenario, to_world_config  # noqa: E402
 from crossroads.evaluation.trace import Trace, TraceRecorder  # noqa: E402
 from crossroads.idc.rule_based import RuleBasedController  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402

@@ -16,9 +16,9 @@ from fastapi.encoders import jsonable_encoder
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
-from crossroads.evaluation.policies import PolicyError
+from crossroads.intersections.resolve import NetworkNotFoundError
 from crossroads.network.junction import JunctionError
-from crossroads.network.resolve import NetworkNotFoundError
+from crossroads.policy.ref import PolicyError
 from crossroads.validation import SpecError
 
 MAX_ECHO_CHARS = 200  # [chars] of a refused string value echoed back as ``input``

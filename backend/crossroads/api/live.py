@@ -1,6 +1,7 @@
 """Live runs: one episode of a scenario shown step by step in the 3D view while it runs.
 
-:meth:`LiveRuns.start` starts a viser server on a free port and the episode in a child process
+:meth:`LiveRuns.start` starts a viser server on a loopback port (the browser reaches it through the
+API's own port: :mod:`crossroads.api.viewer_proxy`) and the episode in a child process
 (:mod:`crossroads.api.live_worker`: libsumo runs one simulation per process, and a crash there
 must not take the API down), then returns at once. A pump thread per run receives the child's
 frames and draws them with a :class:`~crossroads.viz.viewer.Viewer` on the server's scene, which
@@ -17,20 +18,20 @@ import itertools
 import logging
 import math
 import multiprocessing as mp
-import socket
 import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
 from crossroads.api import live_worker
+from crossroads.api.viewer_proxy import LOOPBACK
 
 log = logging.getLogger(__name__)
 
 ACTIVE_STATUSES = ("starting", "waiting", "running")
 LIVE_STATUSES = (*ACTIVE_STATUSES, "done", "failed", "stopped")
 MAX_ACTIVE = 2  # episodes running at once (one SUMO process each)
-MAX_KEPT = 6  # viewers kept open, finished ones included
+MAX_KEPT = 4  # viewers kept open, finished ones included (one loopback port each)
 VIEWER_WAIT_S = 10.0  # [s] a ready run waits this long for a first tab before it starts anyway
 POLL_S = 0.2  # [s] how often the pump looks at a quiet child
 INFO_PERIOD_S = 0.5  # [s] the viewer's status line changes at most this often
@@ -39,12 +40,6 @@ STOP_GRACE_S = 5.0  # [s] a stopped child gets this long to end before it is ter
 
 class LiveBusyError(RuntimeError):
     """As many live runs as allowed are running already."""
-
-
-def _free_port(host: str) -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind((host, 0))
-        return int(s.getsockname()[1])
 
 
 def _finite(data: Any) -> Any:
@@ -97,9 +92,11 @@ class LiveRun:
 
 
 class LiveRuns:
-    """The live runs of this API process: start, read, stop, shutdown. Thread-safe."""
+    """The live runs of this API process: start, read, stop, shutdown. Thread-safe.
 
-    def __init__(self, *, host: str = "127.0.0.1", max_active: int = MAX_ACTIVE,
+    ``host``: where the viewers listen; loopback, as the API hands them on through its own port."""
+
+    def __init__(self, *, host: str = LOOPBACK, max_active: int = MAX_ACTIVE,
                  max_kept: int = MAX_KEPT, viewer_wait_s: float = VIEWER_WAIT_S) -> None:
         self.host = host
         self.max_active = max_active
@@ -127,7 +124,7 @@ class LiveRuns:
             stop, go = ctx.Event(), ctx.Event()
             job = {"spec": spec, "base_dir": base_dir, "policy": policy_ref, "seed": seed,
                    "speed": speed}
-            server = viser.ViserServer(host=self.host, port=_free_port(self.host),
+            server = viser.ViserServer(host=self.host, port=0,
                                        label="Crossroads live", verbose=False)
             process = ctx.Process(target=live_worker.main, args=(child_conn, stop, go, job),
                                   name="crossroads-live", daemon=True)
@@ -217,7 +214,7 @@ class LiveRuns:
 
     def _ready(self, run: LiveRun, ready: dict[str, Any]) -> None:
         """The child's world is built: draw the intersection, wait for a tab, then go."""
-        from crossroads.network.resolve import open_junction
+        from crossroads.intersections.resolve import open_junction
         from crossroads.viz.viewer import Viewer
 
         junction = open_junction(ready["net"], ready["junction"])

@@ -75,8 +75,9 @@ def main(conn: Any, stop: Any, go: Any, job: dict[str, Any]) -> None:
 
 def _run(conn: Any, stop: Any, go: Any, job: dict[str, Any]) -> tuple[str, dict[str, Any]]:
     from crossroads.evaluation.episode import run_episode
-    from crossroads.evaluation.policies import load_controller, parse_policy
-    from crossroads.evaluation.scenario import to_world_config, validate_scenario
+    from crossroads.evaluation.policies import load_controller
+    from crossroads.policy.ref import parse_policy
+    from crossroads.scenario.spec import to_world_config, validate_scenario
     from crossroads.sim.world import World
 
     spec = validate_scenario(job["spec"], source="live run", check_references=False)

@@ -53,7 +53,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     jobs = JobRegistry(store, data_dir=settings.data_dir, ray_address=settings.ray_address,
                        max_running=settings.max_concurrent_batches,
                        episode_wall_limit_s=settings.episode_wall_limit_s)
-    live_runs = LiveRuns(host=settings.host)
+    live_runs = LiveRuns()  # its viewers listen on loopback: reached through the API's port
     app.state.store, app.state.jobs, app.state.live = store, jobs, live_runs
     if settings.resume_batches:
         jobs.resume_unfinished()  # returns at once: the batches run in the background

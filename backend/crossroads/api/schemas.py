@@ -1,6 +1,6 @@
 """Request and response models of the API, one family per resource.
 
-Scenario bodies themselves are validated by :class:`~crossroads.evaluation.scenario.ScenarioSpec`
+Scenario bodies themselves are validated by :class:`~crossroads.scenario.spec.ScenarioSpec`
 (one definition of a scenario for files, the CLI and the API); these models wrap them.
 """
 
@@ -11,7 +11,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from crossroads.evaluation.scenario import MAX_RUNS
+from crossroads.scenario.spec import MAX_RUNS
 from crossroads.settings import MAX_BATCH_WORKERS
 from crossroads.store.tables import MAX_ROW_ID
 
@@ -161,7 +161,11 @@ class EpisodePublic(BaseModel):
     travel_time_s: float | None
     steps: int | None
     time_s: float | None
-    min_distance_m: float | None
+    min_distance_m: float | None = Field(description="[m] closest distance between the ego's centre and "
+                                         "any other road user's centre (centre to centre)")
+    min_gap_m: float | None = Field(None, description="[m] closest gap between the ego's footprint and that "
+                                    "of a road user it was closing in on (0 or less: touching); null when "
+                                    "nobody came close or the episode was recorded before it was kept")
     detail: str
     collided_with: str | None
     events: list[Any]
@@ -186,7 +190,7 @@ class LiveCreate(BaseModel):
     policy: str = Field("rule", min_length=1, max_length=200,
                         description="a policy listed by GET /policies")
     seed: int | None = Field(None, ge=0, le=MAX_SUMO_SEED,
-                             description="the episode's seed; default: the seed of run 0 of the "
+                             description="the episode's seed; default: the seed of the first run of the "
                              "scenario's batches (so the live run replays it)")
     speed: float = Field(1.0, ge=0.0, le=16.0,
                          description="pace: 1 = real time, 2 = twice as fast, 0 = as fast as it runs")

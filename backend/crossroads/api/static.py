@@ -8,14 +8,13 @@ to make one.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 from fastapi import FastAPI, HTTPException
 from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
 from fastapi.responses import FileResponse, HTMLResponse, Response
 
-REPO_DIST = Path(__file__).resolve().parents[3] / "frontend" / "dist"  # <repo>/backend/crossroads/api
+from crossroads.settings import frontend_dist_dir
 
 MISSING_BUILD = """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><title>Crossroads studio</title></head>
@@ -26,11 +25,6 @@ MISSING_BUILD = """<!doctype html>
 <p>The API is up: see <a href="/docs">/docs</a>.</p>
 </body></html>
 """
-
-
-def dist_dir() -> Path:
-    configured = os.environ.get("CROSSROADS_FRONTEND_DIST")
-    return Path(configured) if configured else REPO_DIST
 
 
 VENDOR = "/vendor"  # the doc pages' scripts, copied into the build by frontend/vite.config.js
@@ -59,7 +53,7 @@ def mount_docs(app: FastAPI) -> None:
 
 def mount_frontend(app: FastAPI, dist: Path | None = None) -> None:
     """Add the catch-all route serving the built page; call it after every API router."""
-    root = (dist or dist_dir()).resolve()
+    root = (dist or frontend_dist_dir()).resolve()
 
     @app.get("/{path:path}", include_in_schema=False)
     def frontend(path: str) -> Response:

@@ -38,6 +38,7 @@ from crossroads.evaluation.executors import (
     WorkerJob,
 )
 from crossroads.evaluation.metrics import is_blocked, wilson_interval
+from crossroads.policy.identity import policy_identity
 from crossroads.store import Store, crud
 from crossroads.store.tables import EPISODE_OUTCOMES
 
@@ -141,10 +142,10 @@ def create_batch_for(store: Store, *, spec: Any, policy: str, runs: int | None =
                      warnings: Sequence[str] | None = None) -> int:
     """Register ``spec`` and ``policy`` (idempotently) and a queued batch of ``runs`` (default
     ``spec.runs``) runs, with ``warnings``: by default those of its network as it is now
-    (:func:`~crossroads.evaluation.network_checks.batch_warnings`; a caller that has measured them
+    (:func:`~crossroads.scenario.network_checks.batch_warnings`; a caller that has measured them
     for the same spec and base_dir passes them); returns its id."""
     if warnings is None:
-        from crossroads.evaluation.network_checks import batch_warnings
+        from crossroads.scenario.network_checks import batch_warnings
 
         warnings = batch_warnings(spec, base_dir)
     with store.session() as session:
@@ -210,8 +211,9 @@ class BatchRunner(BackgroundJob[BatchResult]):
 
     def _plan(self) -> _Plan:
         """Check the batch can run here: the worker job, the runs left, the counts so far."""
-        from crossroads.evaluation.policies import load_controller, parse_policy
-        from crossroads.evaluation.scenario import run_seeds, to_world_config
+        from crossroads.evaluation.policies import load_controller
+        from crossroads.policy.ref import parse_policy
+        from crossroads.scenario.spec import run_seeds, to_world_config
 
         with self.store.session() as session:
             batch = crud.get_batch(session=session, batch_id=self.batch_id)
@@ -220,7 +222,7 @@ class BatchRunner(BackgroundJob[BatchResult]):
             spec = crud.scenario_spec(scenario=batch.scenario)
             policy = batch.policy
             if policy.kind != "builtin":  # a file (checkpoint, ONNX) or a plugin's source
-                now = crud.policy_identity(policy.ref).file_hash
+                now = policy_identity(policy.ref).file_hash
                 if now != policy.file_hash:
                     raise BatchError(f"policy file {policy.ref} changed since batch {batch.id} "
                                      f"was created ({policy.file_hash} → {now}); start a new batch")

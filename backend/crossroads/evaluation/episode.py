@@ -16,7 +16,9 @@ from crossroads.evaluation.sumo_driver import SumoDriverPolicy
 from crossroads.evaluation.near_miss import NearMissTracker
 from crossroads.evaluation.trace import TraceRecorder
 from crossroads.idc.controller import Controller
-from crossroads.sim.world import Observation, Outcome, World
+from crossroads.sim.observation import Observation
+from crossroads.sim.outcome import Outcome
+from crossroads.sim.world import World
 
 
 @dataclass(frozen=True)

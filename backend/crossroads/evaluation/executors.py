@@ -35,6 +35,8 @@ from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any, Literal, NoReturn, Protocol
 
+from crossroads.settings import fork_episodes
+
 FaultKind = Literal["raise", "kill"]
 ERROR_MESSAGE_MAX = 4000  # [chars] of a stored error message (first line: type and message)
 POLL_S = 0.2  # [s] how often executors look at the cancel event
@@ -85,7 +87,7 @@ class WorkerJob:
 
     spec: dict[str, Any]  # ScenarioSpec as JSON (model_dump(mode="json"))
     base_dir: str | None  # relative net paths of the spec count from here
-    policy_ref: str  # a policy reference as crossroads.evaluation.policies.parse_policy reads it
+    policy_ref: str  # a policy reference as crossroads.policy.ref.parse_policy reads it
     traces: Literal["all", "failed", "none"] = "failed"
     trace_dir: str | None = None  # <data_dir>/traces/<batch_id>; required unless traces == "none"
     # Test hook: run index → a fault injected mid-episode ("raise": an exception in the
@@ -129,7 +131,7 @@ class _Sabotaged:
 # report itself), so every child starts from the same memory, whatever ran before it and whichever
 # worker gets the seed. Off where there is no fork (Windows), or with CROSSROADS_FORK_EPISODES=0
 # (read by each worker process when it starts): episodes then run in the worker itself.
-FORK_EPISODES = hasattr(os, "fork") and os.environ.get("CROSSROADS_FORK_EPISODES", "1") != "0"
+FORK_EPISODES = hasattr(os, "fork") and fork_episodes()
 _PR_SET_PDEATHSIG = 1  # prctl option (Linux): a signal for this process when its parent dies
 _CHILD_STOP = 3  # exit status of a child that was told to stop (or lost the coordinator's pipe)
 _CHILD_FAILED = 70  # exit status of a child that raised outside the episode (EX_SOFTWARE)
@@ -198,8 +200,9 @@ class EpisodeWorker:
         return _died(task, f"episode process {pid} of {self.name}", _exit_reason(code))
 
     def _ready(self) -> tuple[Any, Any]:
-        from crossroads.evaluation.policies import load_controller, parse_policy
-        from crossroads.evaluation.scenario import to_world_config, validate_scenario
+        from crossroads.evaluation.policies import load_controller
+        from crossroads.policy.ref import parse_policy
+        from crossroads.scenario.spec import to_world_config, validate_scenario
         from crossroads.sim.world import World
 
         if self._spec is None:

@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from crossroads.constants import ACCEL_MIN, EGO_LENGTH_M, EGO_WIDTH_M
-from crossroads.sim.world import Observation
+from crossroads.sim.observation import Observation
 
 GAP_RANGE_M = 30.0  # [m] centre distance beyond which a participant is not measured for the gap
 TTC_RANGE_M = 50.0  # [m] centre distance beyond which a participant is not looked at for a TTC

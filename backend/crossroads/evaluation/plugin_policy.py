@@ -8,7 +8,7 @@
   (:class:`crossroads.planning.CandidatePath`: ``points`` (n, 2) [m], ``heading``, ``s``, the
   pass/stop speed profiles, ...);
 * ``decide(observation) -> Decision`` every 0.1 s, with a
-  :class:`crossroads.sim.world.Observation` (the ego's state, the light, the distance to the stop
+  :class:`crossroads.sim.observation.Observation` (the ego's state, the light, the distance to the stop
   line, the perceived participants with their noise, the candidates, the map); the
   :class:`~crossroads.idc.controller.Decision` holds the action [Δδ rad/s, Δa m/s³] (clipped to
   ±0.4 and ±4.5 by the ego model), the index of the candidate it follows and its speed mode.
@@ -25,15 +25,14 @@ from __future__ import annotations
 import importlib
 import importlib.util
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from crossroads.evaluation.policies import PLUGIN_PREFIX, PolicyError
 from crossroads.idc.controller import Controller, Decision
 from crossroads.planning import CandidatePath
-from crossroads.sim.world import Observation
+from crossroads.policy.ref import PLUGIN_PREFIX, PolicyError
+from crossroads.sim.observation import Observation
 
 SPEED_MODES = ("pass", "stop")
 
@@ -70,21 +69,6 @@ class PluginController:
         if decision.speed_mode not in SPEED_MODES:
             raise PolicyError(f"{where} speed_mode {decision.speed_mode!r}; it must be 'pass' or 'stop'")
         return decision
-
-
-def plugin_source(target: str) -> Path:
-    """The source file of a plugin's module (what its identity in the results store hashes)."""
-    module_name = target.partition(":")[0]
-    try:
-        spec = importlib.util.find_spec(module_name)
-    except (ImportError, ValueError) as exc:
-        spec, reason = None, f" ({exc})"
-    else:
-        reason = ""
-    if spec is None or not spec.origin or not Path(spec.origin).is_file():
-        raise PolicyError(f"policy {PLUGIN_PREFIX + target!r}: no source file for module {module_name!r}{reason}; "
-                          "it must be importable (installed, or its directory on PYTHONPATH)")
-    return Path(spec.origin)
 
 
 def load_plugin(target: str, *, name: str) -> Controller:

@@ -36,8 +36,8 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, SIM_STEP_S
-from crossroads.evaluation.scenario import ScenarioSpec, to_world_config
 from crossroads.geometry import project_onto_polyline
+from crossroads.scenario.spec import ScenarioSpec, to_world_config
 from crossroads.sim.abnormal import junction_lane_sets
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.signals import TlProgram, phase_at

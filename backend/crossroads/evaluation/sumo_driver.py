@@ -18,8 +18,8 @@ import numpy as np
 from crossroads.constants import V_LIMIT_MPS
 from crossroads.idc.controller import Decision
 from crossroads.planning import CandidatePath
+from crossroads.sim.observation import Observation
 from crossroads.sim.sumo import SumoDriver
-from crossroads.sim.world import Observation
 
 SUMO_POLICY = "sumo"
 

@@ -32,12 +32,6 @@ from typing import Any, SupportsFloat
 import gymnasium as gym
 import numpy as np
 
-from crossroads.evaluation.scenario import (
-    ScenarioSpec,
-    load_scenario,
-    to_world_config,
-    validate_scenario,
-)
 from crossroads.gym.observation import (
     IdcView,
     ObservationKind,
@@ -48,10 +42,17 @@ from crossroads.gym.observation import (
     state_width,
 )
 from crossroads.gym.reward import RewardConfig, step_reward
+from crossroads.scenario.spec import (
+    ScenarioSpec,
+    load_scenario,
+    to_world_config,
+    validate_scenario,
+)
+from crossroads.sim.observation import Observation
 from crossroads.sim.sumo import SumoError
-from crossroads.sim.world import Observation, World
+from crossroads.sim.world import World
 
-SEED_LIMIT = 2**31 - 1  # episode seeds are SUMO seeds: 31 bits (evaluation.scenario.SEED_MASK)
+SEED_LIMIT = 2**31 - 1  # episode seeds are SUMO seeds: 31 bits (scenario.spec.SEED_MASK)
 TASKS = ("left", "straight", "right")
 
 

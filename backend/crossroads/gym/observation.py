@@ -44,7 +44,7 @@ from crossroads.constants import JERK_MAX, STATE_DIM, STEER_RATE_MAX
 from crossroads.idc.controller import SpeedMode
 from crossroads.idc.lights import choose_speed_mode
 from crossroads.idc.state import DX, DY, PREVIEW_STATE_DIM, build_states, select_others
-from crossroads.sim.world import Observation
+from crossroads.sim.observation import Observation
 
 ObservationKind = Literal["box", "dict"]
 PathChoice = Literal["nearest"] | int

@@ -1,6 +1,6 @@
 """The controller interface: what drives the ego in an episode (the rule baseline or a trained IDC).
 
-A controller sees an :class:`~crossroads.sim.world.Observation` each step and answers with a
+A controller sees an :class:`~crossroads.sim.observation.Observation` each step and answers with a
 :class:`Decision`: the action [Δδ, Δa] plus what it decided on the way (the chosen candidate path,
 the speed mode, the path values), which the trace records for playback.
 """
@@ -15,7 +15,7 @@ import numpy as np
 
 from crossroads.geometry import FloatArray
 from crossroads.planning import CandidatePath
-from crossroads.sim.world import Observation
+from crossroads.sim.observation import Observation
 
 SpeedMode = Literal["pass", "stop"]
 

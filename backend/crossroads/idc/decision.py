@@ -5,14 +5,13 @@ built in that mode and the batch goes through the value network; the path of lea
 τ* = argmin_τ v_w(s(τ)); the driving policy's mean action for s(τ*) is the command.
 
 The networks are plain torch modules (anything with the shapes of :mod:`crossroads.rl.networks`),
-so this module does not depend on the training code; :meth:`IdcController.from_checkpoint` loads a
-trained run's networks through :mod:`crossroads.rl.checkpoint` when asked to.
+so this module does not depend on the training code: a trained model's networks are loaded by the
+caller (``load_controller`` of :mod:`crossroads.evaluation.policies`, through ``rl.checkpoint``).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 import torch
@@ -27,7 +26,7 @@ from crossroads.idc.shield import shield_action
 from crossroads.idc.state import build_states, select_others
 from crossroads.planning import CandidatePath
 from crossroads.sim.ego import braking_distance_m
-from crossroads.sim.world import Observation
+from crossroads.sim.observation import Observation
 
 
 # [0.1 s] the crossing the shield braked for stays its line until no one has claimed it for this
@@ -61,14 +60,6 @@ class IdcController:
         # networks built with the path preview read 120-value states (crossroads.idc.state)
         self.preview = bool(getattr(policy, "preview", False))
 
-    @classmethod
-    def from_checkpoint(cls, path: str | Path, shield: bool = False) -> IdcController:
-        from crossroads.rl.checkpoint import load_networks
-
-        networks, _ = load_networks(Path(path))
-        name = Path(path).stem + ("+shield" if shield else "")
-        return cls(networks.policy, networks.value, name=name, shield=shield)
-
     def reset(self, candidates: Sequence[CandidatePath]) -> None:
         self._candidates = tuple(candidates)
         self._shield_braked = False
@@ -84,7 +75,8 @@ class IdcController:
         the path preview)."""
         with torch.inference_mode():
             batch = torch.from_numpy(np.ascontiguousarray(states)).to(self._dtype)
-            values = self.value(batch)
+            # identical states get one value, the first's: a tie goes to the first path (below)
+            values = self.value(batch)[torch.from_numpy(first_identical(states))]
             best = int(torch.argmin(values))
             action = self.policy.mean_action(batch[best:best + 1])[0]
         return best, action.double().numpy(), values.double().numpy()
@@ -157,6 +149,25 @@ class IdcController:
         if not can_stand_short_of(gap, float(braking_distance_m(speed, float(ego[7])))):
             return None
         return gap, span
+
+
+def first_identical(states: np.ndarray) -> np.ndarray:
+    """(n,) for each of the n states (n, width) the index of the first state equal to it, value for
+    value (itself when none before is).
+
+    Why: while the ego is on the metres its candidate paths share, their states are the same numbers
+    and so, exactly, are their values; but a batched network rounds each row its own way (torch's
+    float32 products gave row 1 of 3 identical states a value a few 1e-7 lower, onnxruntime all three
+    the same), so the least value, and with it the path whose crossings and exit heading the shield
+    checks, went to whichever row the rounding favoured. Measured on the first 50 seeds of the
+    nominal left turn on c_three_lane (30 s): the shipped APG and its ONNX export, given the same
+    observations, chose different paths at 2 to 14 steps of every episode, and with the shield the
+    two ended seed 562883973 differently (docs/guide/own-driver.md); with the tie to the first, at
+    none."""
+    x = np.asarray(states)
+    same = (x[:, None, :] == x[None, :, :]).all(axis=-1)
+    np.fill_diagonal(same, True)  # a state with a NaN is still itself
+    return same.argmax(axis=1)
 
 
 def _light_holds(observation: Observation) -> bool:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from crossroads.idc.state import N_OTHERS, others_in_slots, selected_rows
-from crossroads.sim.world import Observation, participant_curvatures
+from crossroads.sim.observation import Observation, participant_curvatures
 
 
 def observed_others(obs: Observation) -> tuple[np.ndarray, np.ndarray]:

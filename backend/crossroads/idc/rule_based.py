@@ -34,7 +34,7 @@ from crossroads.geometry import wrap_scalar
 from crossroads.idc.controller import Decision, SpeedMode
 from crossroads.idc.lights import choose_speed_mode
 from crossroads.planning import CandidatePath
-from crossroads.sim.world import Observation
+from crossroads.sim.observation import Observation
 
 WHEELBASE_M = L_F + L_R  # [m]
 LOOKAHEAD_BASE_M = 4.0  # [m] pure-pursuit look-ahead at standstill

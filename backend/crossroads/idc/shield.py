@@ -1,7 +1,7 @@
 """A safety shield for the online decision: keep a way to brake clear of everyone.
 
 **(choice)** Not in the paper, and off unless asked for (a policy reference ending in ``+shield``,
-``evaluation.policies``): the bare policy is what APG and DPG are compared by.
+``crossroads.policy.ref``): the bare policy is what APG and DPG are compared by.
 
 Why: 2 s before the collisions of the trained models on the nominal left turn, the training model
 itself (rl.model: f_ego, f_other with each participant's route curvature, ξ ≡ 0) already predicted

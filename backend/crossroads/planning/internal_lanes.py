@@ -3,7 +3,7 @@
 The ego drives its candidate path (the Bezier curve between its entrance and exit lanes); SUMO's
 vehicles drive the internal lane of the same connection, and SUMO puts the ego where it projects
 onto that lane (``sim/sumo.py``), which is where its junction model and its drivers see it. The
-catalogue's builds draw every internal lane along its candidate path (``network/build.py``); a
+catalogue's builds draw every internal lane along its candidate path (``intersections/build.py``); a
 user's net keeps netconvert's, or its author's, lanes, and the further they run from the paths
 the less SUMO's idea of the ego is the ego. This measures it, movement by movement, for
 ``crossroads net check``, the upload answer and the warning of ``crossroads evaluate``.

@@ -96,7 +96,7 @@ def recorded_states(samples: int, preview: bool, seed: int = 0) -> np.ndarray:
     agree within 4e-6 (measured on the shipped models)."""
     from crossroads.idc.rule_based import RuleBasedController
     from crossroads.idc.state import build_states, select_others
-    from crossroads.network import catalogue
+    from crossroads.intersections import catalogue
     from crossroads.sim.config import WorldConfig
     from crossroads.sim.world import World
 

@@ -55,8 +55,9 @@ from crossroads.rl.buffer import Samples
 from crossroads.rl.config import TrainConfig
 from crossroads.sim.config import EgoStart, SignalStart, WorldConfig
 from crossroads.sim.ego import clip_action
+from crossroads.sim.observation import Observation
 from crossroads.sim.traffic import TrafficDemand
-from crossroads.sim.world import Observation, World
+from crossroads.sim.world import World
 
 PolicyWeights = dict[str, np.ndarray]  # a policy's state_dict as numpy arrays (picklable everywhere)
 
@@ -66,7 +67,7 @@ PolicyWeights = dict[str, np.ndarray]  # a policy's state_dict as numpy arrays (
 
 def net_file(intersection: str) -> str:
     """The .net.xml of a catalogued intersection (built once, then cached)."""
-    from crossroads.network import catalogue
+    from crossroads.intersections import catalogue
 
     return str(catalogue.build(intersection))
 

@@ -56,11 +56,11 @@ def _search(policy: str | None, space_file: Path | None, budget: int, workers: i
 
     from tqdm import tqdm
 
+    from crossroads.policy.identity import policy_identity
     from crossroads.search.engine import SearchRunner, create_search_for
     from crossroads.search.space import load_space, network_problems_of
     from crossroads.settings import Settings
     from crossroads.store import open_store
-    from crossroads.store.crud import policy_identity
     from crossroads.validation import SpecError
 
     if resume is None and (policy is None or space_file is None):

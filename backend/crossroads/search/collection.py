@@ -13,7 +13,7 @@ from pathlib import Path
 
 import yaml
 
-from crossroads.evaluation.scenario import ScenarioSpec
+from crossroads.scenario.spec import ScenarioSpec
 
 
 def failure_yaml(spec: ScenarioSpec, *, header: Iterable[str] = ()) -> str:

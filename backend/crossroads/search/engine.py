@@ -41,7 +41,8 @@ from typing import Any
 import numpy as np
 
 from crossroads.evaluation.background import BackgroundJob
-from crossroads.evaluation.scenario import ScenarioSpec, content_hash
+from crossroads.policy.identity import policy_identity
+from crossroads.scenario.spec import ScenarioSpec, content_hash
 from crossroads.search import records
 from crossroads.search.collection import write_failure
 from crossroads.search.objective import FAILURE_VALUE, objective
@@ -234,7 +235,7 @@ class SearchRunner(BackgroundJob[dict[str, Any]]):
         """Run what is left of the search; its summary (:func:`summarize_search`)."""
         import optuna
 
-        from crossroads.evaluation.network_checks import batch_warnings
+        from crossroads.scenario.network_checks import batch_warnings
 
         optuna.logging.set_verbosity(optuna.logging.WARNING)
         with self.store.session() as session:
@@ -243,7 +244,7 @@ class SearchRunner(BackgroundJob[dict[str, Any]]):
                 raise SearchError(f"no search {self.search_id} in {self.store.url}")
             policy = search.policy
             if policy.kind != "builtin":
-                now = crud.policy_identity(policy.ref).file_hash
+                now = policy_identity(policy.ref).file_hash
                 if now != policy.file_hash:
                     raise SearchError(f"policy file {policy.ref} changed since search {search.id} "
                                       f"was created ({policy.file_hash} → {now}); start a new search")

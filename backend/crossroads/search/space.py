@@ -27,7 +27,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from crossroads.evaluation.scenario import (
+from crossroads.scenario.spec import (
     MAX_SEED,
     ScenarioSpec,
     load_scenario,
@@ -295,7 +295,7 @@ def network_problems_of(space: Space) -> list[tuple[str, str]]:
     have, a time in a phase beyond its duration, a start that does not fit the lane. Checked at
     the ends of every range (the others at nominal), and every phase choice with the longest
     time in it: a search should not spend its budget on scenarios that cannot run."""
-    from crossroads.evaluation.network_checks import network_problems
+    from crossroads.scenario.network_checks import network_problems
 
     def ends(p: Parameter) -> list[float]:
         return list(p.choices) if p.choices is not None else [p.low, p.high]  # type: ignore[list-item]

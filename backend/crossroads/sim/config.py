@@ -1,7 +1,7 @@
 """What a world is made of: the intersection, the ego's task and start, the lights and the traffic.
 
 Plain frozen dataclasses (the simulation's internal record). Users write scenarios
-(:mod:`crossroads.evaluation.scenario`, validated by pydantic), which turn into a WorldConfig.
+(:mod:`crossroads.scenario.spec`, validated by pydantic), which turn into a WorldConfig.
 The seed is not part of the config: every episode of one config gets its own seed.
 """
 
@@ -81,3 +81,4 @@ class WorldConfig:
     perception_noise: bool = True  # Gaussian noise of SPEC §3 on the observations
     rho: float | None = None  # ρ of the Bezier candidate paths; None: chosen per candidate
     gridlock_stand_s: float | None = DEFAULT_GRIDLOCK_STAND_S  # [s] sim/gridlock.py; None: off
+    pedestrian_courtesy: bool = True  # pedestrians stop for a standing ego (sim/courtesy.py)

@@ -7,7 +7,7 @@ the line along its route, on the edges before its entrance lane (the junction's 
 itself too short is refused, naming the longest start that fits.
 
 One rule for every caller: ``crossroads run`` and ``evaluate``, the API and the studio check it
-through :mod:`crossroads.evaluation.network_checks`, and the world places the ego with it.
+through :mod:`crossroads.scenario.network_checks`, and the world places the ego with it.
 """
 
 from __future__ import annotations

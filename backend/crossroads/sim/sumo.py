@@ -41,18 +41,16 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from itertools import chain
 from pathlib import Path
-from typing import Literal, ParamSpec, TypeVar
+from typing import ParamSpec, TypeVar
 
 import libsumo
 import numpy as np
 from numpy.typing import NDArray
 
-from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, PARTICIPANT_KINDS, SIM_STEP_S
+from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, SIM_STEP_S
 from crossroads.geometry import heading_to_sumo_angle, point_at, project_onto_polyline
+from crossroads.sim.snapshot import KIND_CODE, KINDS, Kind, Snapshot
 
-Kind = Literal["vehicle", "cyclist", "pedestrian"]
-KINDS: tuple[Kind, ...] = PARTICIPANT_KINDS
-KIND_CODE: dict[str, int] = {kind: code for code, kind in enumerate(KINDS)}
 _KIND_NAMES = np.array(KINDS, dtype="<U10")  # KIND_CODE inverted, for column lookups
 
 EGO_TYPE_ID = "ego"
@@ -75,6 +73,12 @@ class SumoDriver:
     sigma: float = 0.0  # Krauss imperfection
     min_gap_m: float = 2.5  # [m] standstill gap to the leader
     impatience: float = 0.5  # as the world's cars (sim/traffic.py IMPATIENCE)
+    # [m/s] a foe with right of way moving no faster than this is not waited for: SUMO's junction
+    # model otherwise has a driver waiting to turn left wait for a foe that itself stands (a car
+    # held at its own line, a queue that does not move), through whole cycles with its link open —
+    # on the nominal left turn of c_three_lane, 4 of 30 runs timed out so (base seed 20261206);
+    # with it 2 of those 4 passed in the next cycle. None: wait for every foe.
+    ignore_foes_below_mps: float | None = 1.0
 
 # SUMO speed-mode bits (sumo.dlr.de/docs/TraCI/Change_Vehicle_State.html#speed_mode_0xb3).
 SPEED_MODE_DEFAULT = 31  # all checks on
@@ -176,66 +180,6 @@ def _option_pairs(extra_args: Sequence[str]) -> dict[str, str]:
             out[key] = "true"
             i += 1
     return out
-
-
-@dataclass(frozen=True)
-class Snapshot:
-    """Every participant SUMO has at one instant (the ego excluded), as parallel arrays.
-
-    ``x``, ``y`` [m] are footprint centres; ``heading`` [rad] CCW from +x; ``speed`` [m/s];
-    ``length``/``width`` [m]. ``lane_id``/``edge_id`` are SUMO's ("" when off the network).
-    ``route`` holds each participant's edges (vehicles: its route; pedestrians: the edges of the
-    current walk).
-    """
-
-    time_s: float
-    ids: NDArray[np.str_]
-    kind: NDArray[np.str_]
-    kind_code: NDArray[np.int8]  # index into KINDS (cheaper to compare than the strings)
-    x: NDArray[np.float64]
-    y: NDArray[np.float64]
-    heading: NDArray[np.float64]
-    speed: NDArray[np.float64]
-    length: NDArray[np.float64]
-    width: NDArray[np.float64]
-    route: tuple[tuple[str, ...], ...]
-    read_lanes: Callable[[], tuple[str, ...]]
-    """Reads every participant's lane from SUMO, in the same step only (see ``lane_id``)."""
-
-    def __len__(self) -> int:
-        return len(self.ids)
-
-    @functools.cached_property
-    def observation_rows(self) -> NDArray[np.float64]:
-        """(n, 6) rows ``[x, y, speed, heading, length, width]``, the layout of an observation."""
-        rows = np.empty((len(self.ids), 6))  # filled column by column: np.column_stack's work, less overhead
-        for k, column in enumerate((self.x, self.y, self.speed, self.heading, self.length, self.width)):
-            rows[:, k] = column
-        return rows
-
-    @functools.cached_property
-    def lane_id(self) -> NDArray[np.str_]:
-        """SUMO lane of each participant. Read when first asked (most steps never ask: the control
-        loop does not need it), so it must be asked before the session steps again; later it
-        raises :class:`SumoError`."""
-        return np.array(self.read_lanes(), dtype=np.str_)
-
-    @functools.cached_property
-    def edge_id(self) -> NDArray[np.str_]:
-        """SUMO edge of each participant ("" when off the network), from its lane id."""
-        return np.array([lane.rsplit("_", 1)[0] if lane else "" for lane in self.lane_id],
-                        dtype=np.str_)
-
-    def of_kind(self, kind: Kind) -> NDArray[np.bool_]:
-        """Boolean mask of the participants of one kind."""
-        return self.kind == kind
-
-    def index(self, participant_id: str) -> int:
-        """Row of a participant; KeyError if it is not in the snapshot."""
-        rows = np.flatnonzero(self.ids == participant_id)
-        if len(rows) == 0:
-            raise KeyError(participant_id)
-        return int(rows[0])
 
 
 @dataclass(frozen=True)
@@ -638,6 +582,9 @@ class SumoSession:
             vt.setImperfection(type_id, sumo_driver.sigma)
             vt.setMinGap(type_id, sumo_driver.min_gap_m)
             vt.setImpatience(type_id, sumo_driver.impatience)
+            if sumo_driver.ignore_foes_below_mps is not None:
+                vt.setParameter(type_id, "junctionModel.jmIgnoreFoeProb", "1")
+                vt.setParameter(type_id, "junctionModel.jmIgnoreFoeSpeed", f"{sumo_driver.ignore_foes_below_mps:g}")
             vt.setSpeedFactor(type_id, 1.0)
             vt.setSpeedDeviation(type_id, 0.0)
         route_id = f"__route_{ego_id}"
@@ -802,6 +749,16 @@ class SumoSession:
     @_sumo_errors
     def vehicle_type(self, vehicle_id: str) -> str:
         return libsumo.vehicle.getTypeID(vehicle_id)
+
+    @_sumo_errors
+    def hold_person(self, person_id: str) -> None:
+        """Stop a pedestrian where it is (its speed 0) until :meth:`release_person`."""
+        libsumo.person.setSpeed(person_id, 0.0)
+
+    @_sumo_errors
+    def release_person(self, person_id: str) -> None:
+        """Let a held pedestrian walk on at its own speed."""
+        libsumo.person.setSpeed(person_id, -1.0)
 
     @_sumo_errors
     def remove(self, participant_id: str) -> None:

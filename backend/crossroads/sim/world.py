@@ -16,13 +16,12 @@ from __future__ import annotations
 import math
 import shutil
 import tempfile
-from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
-from typing import Literal, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
-from shapely.geometry import LineString, Polygon
+from shapely.geometry import LineString
 from shapely.ops import unary_union
 
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, SIM_STEP_S
@@ -35,13 +34,14 @@ from crossroads.planning import CandidatePath, plan_candidates
 from crossroads.sim.abnormal import AbnormalTraffic
 from crossroads.sim.blocking import BlockedBy, held_whole_episode, nearest_barrier
 from crossroads.sim.config import WorldConfig
+from crossroads.sim.courtesy import PedestrianCourtesy
 from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
 from crossroads.sim.gridlock import GridlockBreaker
-from crossroads.sim.other import route_curvature
+from crossroads.sim.observation import LightView, Observation, Perceived
+from crossroads.sim.outcome import Outcome
 from crossroads.sim.region import Region
 from crossroads.sim.signals import (
-    Light,
     apply_start,
     live_light,
     movement_link,
@@ -49,13 +49,12 @@ from crossroads.sim.signals import (
     phase_for_light,
     read_program,
 )
+from crossroads.sim.snapshot import KIND_CODE, Snapshot
 from crossroads.sim.start import place_ego
-from crossroads.sim.sumo import KIND_CODE, Snapshot, SumoDriver, SumoSession
+from crossroads.sim.sumo import SumoDriver, SumoSession
 from crossroads.sim.traffic import DemandPlan, build_plan, write_plan
 
 EGO_ID = "ego"
-OutcomeKind = Literal["passed", "collision", "red_light", "off_road", "timeout"]
-OUTCOMES: tuple[OutcomeKind, ...] = ("passed", "collision", "red_light", "off_road", "timeout")
 
 OFF_ROAD_TOLERANCE_M = 0.5  # [m] a corner may overhang the drivable area this much (kerb, paint)
 SPAWN_CLEARANCE_M = 6.0  # [m] participants this close to the ego's start are removed at entry
@@ -89,61 +88,6 @@ _SAME_WAY_COS = math.cos(FRONT_HEADING_TOLERANCE_RAD)
 _PEDESTRIAN = KIND_CODE["pedestrian"]
 
 
-@dataclass(frozen=True)
-class LightView:
-    """The signal the ego's approach sees."""
-
-    light: Light  # "green" | "yellow" | "red"
-    remaining_s: float  # [s] until it changes
-    state: str  # the whole tlLogic state string (every link), for drawing
-
-
-@dataclass(frozen=True)
-class Perceived:
-    """The participants the ego's sensors cover, with the noisy observation of each."""
-
-    rows: np.ndarray  # indices into the snapshot
-    kinds: np.ndarray  # "vehicle" | "cyclist" | "pedestrian"
-    observations: FloatArray  # (n, 6): [p_x, p_y, v, φ, L, W], world frame, noisy
-
-
-@dataclass(frozen=True)
-class Observation:
-    """What a controller may look at after a step (the true snapshot is for the trace and judge)."""
-
-    time_s: float  # [s] since the ego entered
-    ego: FloatArray  # (8,) [p_x, p_y, v_x, v_y, φ, ω, δ, a]
-    light: LightView
-    distance_to_stop_line_m: float  # [m] of the ego's front bumper; negative once past it
-    front_vehicle_stopped_s: float  # [s] the vehicle ahead has been standing (0 if none/moving)
-    participants: Snapshot  # true state of everyone but the ego
-    abnormal_ids: frozenset[str]
-    perceived: Perceived
-    candidates: tuple[CandidatePath, ...]
-    # lane centre lines by SUMO lane id (the junction's internal lanes included): static map
-    # knowledge, as the candidates are, from which a controller can tell a participant's turning
-    # radius (:func:`participant_curvatures`)
-    lane_shapes: Mapping[str, FloatArray] = field(default_factory=dict)
-    # the junction's pedestrian crossings (their areas): static map knowledge too, from which the
-    # safety shield tells where the ego's path runs over one (crossroads.idc.crosswalks)
-    crossings: tuple[Polygon, ...] = ()
-
-    @property
-    def past_stop_line(self) -> bool:
-        return self.distance_to_stop_line_m < 0.0
-
-
-def participant_curvatures(lane_shapes: Mapping[str, FloatArray], snap: Snapshot, rows: np.ndarray) -> FloatArray:
-    """Signed curvature 1/R [1/m] of the participants at ``rows`` of ``snap``, from their lane and
-    position (0 on lanes ``lane_shapes`` does not describe, and for pedestrians): the R of f_other."""
-    kappa = np.zeros(len(rows))
-    for k, row in enumerate(rows):
-        shape = lane_shapes.get(str(snap.lane_id[row]))
-        if shape is not None and snap.kind[row] != "pedestrian":
-            kappa[k] = route_curvature(shape, float(snap.x[row]), float(snap.y[row]))
-    return kappa
-
-
 class _Around(NamedTuple):
     """Every participant of a snapshot relative to the ego's centre, computed once a step: the
     sensors, the front-vehicle check and the collision judge all start from these (each used to
@@ -152,19 +96,6 @@ class _Around(NamedTuple):
     dx: FloatArray  # [m] x − ego x
     dy: FloatArray  # [m] y − ego y
     distance: FloatArray  # [m] np.hypot(dx, dy)
-
-
-@dataclass(frozen=True)
-class Outcome:
-    """How an episode ended."""
-
-    kind: OutcomeKind
-    time_s: float  # [s] since the ego entered
-    detail: str = ""  # e.g. which participant was hit
-    other_kind: str | None = None  # collision: "vehicle" | "cyclist" | "pedestrian"
-    # timeout: the participant that barred every candidate path the whole episode, if one did
-    # (the world's failure, not the driver's: sim/blocking.py)
-    blocked_by: BlockedBy | None = None
 
 
 class World:
@@ -278,6 +209,7 @@ class World:
         self.abnormal.apply_speed_limits(self.session)
         self._noise_rng = np.random.default_rng(noise_seq)
         self._gridlocks = GridlockBreaker(self.junction, cfg.gridlock_stand_s)
+        self._courtesy = PedestrianCourtesy(cfg.pedestrian_courtesy)
         for _ in range(int(round(cfg.warmup_s / SIM_STEP_S))):
             self.session.step()
             self.abnormal.update(self.session)
@@ -407,7 +339,19 @@ class World:
         around = self._around(snap)
         obs = self._observe(snap, around)
         self.outcome = self._judge(snap, obs, previous_distance, around)
+        if self.outcome is None:
+            self._let_pedestrians_stop(snap)
         return obs, self.outcome
+
+    def _let_pedestrians_stop(self, snap: Snapshot) -> None:
+        """Pedestrians about to walk into the standing ego stop (sim/courtesy.py)."""
+        x, y, speed, _, heading = self.ego[:5].tolist()
+        if not self._courtesy.may_act(speed):
+            return
+        walkers = (snap.kind_code == _PEDESTRIAN).nonzero()[0]
+        self._courtesy.update(self.session, snap.ids[walkers], snap.x[walkers], snap.y[walkers],
+                              snap.heading[walkers], snap.speed[walkers],
+                              (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M))
 
     def _read_sumo_ego(self) -> None:
         """The ego's state from SUMO, which drove it this step (policy ``sumo``)."""

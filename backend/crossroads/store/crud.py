@@ -6,7 +6,6 @@ written by :func:`record_episode` is either wholly in the store or not at all.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from collections.abc import Iterable, Mapping, Sequence
@@ -18,6 +17,7 @@ from sqlalchemy import func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session, joinedload
 
+from crossroads.policy.identity import policy_identity
 from crossroads.store.tables import (
     BATCH_STATUSES,
     EPISODE_OUTCOMES,
@@ -33,59 +33,12 @@ from crossroads.store.tables import (
 
 FINISHED_STATUSES = ("done", "cancelled", "failed")
 UNFINISHED_STATUSES = tuple(s for s in BATCH_STATUSES if s not in FINISHED_STATUSES)  # queued, running
-HASH_CHUNK = 1 << 20
 
 
 def in_id_range(value: int | None, *, low: int = 1) -> bool:
     """Whether ``value`` fits the store's INTEGER id columns (a larger one would make the database
     driver fail instead of finding nothing)."""
     return value is not None and low <= value <= MAX_ROW_ID
-
-
-def file_sha256(path: str | Path) -> str:
-    digest = hashlib.sha256()
-    with Path(path).open("rb") as f:
-        while chunk := f.read(HASH_CHUNK):
-            digest.update(chunk)
-    return digest.hexdigest()
-
-
-@dataclass(frozen=True)
-class PolicyIdentity:
-    """Who a policy reference is: ``builtin:rule``, the sha256 of a checkpoint's or an ONNX file's
-    bytes, or for a Python plugin the sha256 of its reference and its module's source file."""
-
-    name: str
-    ref: str  # the canonical reference (crossroads.evaluation.policies.PolicyRef as text)
-    kind: str  # builtin | checkpoint | onnx | plugin
-    file_hash: str
-    card: dict[str, Any] | None
-
-
-def policy_identity(ref: str) -> PolicyIdentity:
-    """The identity of ``ref`` (parsed by :func:`~crossroads.evaluation.policies.parse_policy`). A
-    file's card is read from a ``<stem>.card.json`` or ``<stem>.json`` next to it when there is one.
-    A checkpoint or ONNX file with the safety shield (``+shield``) is a policy of its own: name and
-    hash carry the suffix. A plugin is named by its reference and hashed with its module's source
-    file (an edited plugin is a new policy; the modules it imports are not hashed)."""
-    from crossroads.evaluation.policies import SHIELD_SUFFIX, PolicyError, parse_policy, read_model_card
-
-    parsed = parse_policy(ref)
-    text = str(parsed)
-    if parsed.kind in ("rule", "sumo"):
-        return PolicyIdentity(text, text, "builtin", f"builtin:{text}", None)
-    if parsed.kind == "plugin":
-        from crossroads.evaluation.plugin_policy import plugin_source
-
-        digest = hashlib.sha256(f"{parsed.target}\n{file_sha256(plugin_source(parsed.target))}".encode())
-        return PolicyIdentity(parsed.name, text, "plugin", f"py:sha256:{digest.hexdigest()}", None)
-    path = Path(parsed.target)
-    if not path.is_file():
-        what = "checkpoint" if parsed.kind == "checkpoint" else "ONNX file"
-        raise PolicyError(f"policy {what} {parsed.target!r} does not exist")
-    card = read_model_card(path)
-    suffix = SHIELD_SUFFIX if parsed.shield else ""
-    return PolicyIdentity(parsed.name, text, parsed.kind, f"sha256:{file_sha256(path)}{suffix}", card)
 
 
 def _get_or_create(session: Session, model: type[Any], unique: Mapping[str, Any],
@@ -113,8 +66,8 @@ def _get_or_create(session: Session, model: type[Any], unique: Mapping[str, Any]
 
 
 def get_or_create_scenario(*, session: Session, spec: Any) -> Scenario:
-    """The row of a :class:`~crossroads.evaluation.scenario.ScenarioSpec` (by content hash)."""
-    from crossroads.evaluation.scenario import canonical_json, content_hash
+    """The row of a :class:`~crossroads.scenario.spec.ScenarioSpec` (by content hash)."""
+    from crossroads.scenario.spec import canonical_json, content_hash
 
     return _get_or_create(session, Scenario, {"content_hash": content_hash(spec)},
                           {"name": spec.name, "spec": json.loads(canonical_json(spec))})
@@ -145,7 +98,7 @@ def batch_counts(*, session: Session, scenario_ids: Iterable[int]) -> dict[int, 
 
 def scenario_spec(*, scenario: Scenario) -> Any:
     """The stored spec, validated again into a ScenarioSpec (references are not checked)."""
-    from crossroads.evaluation.scenario import validate_scenario
+    from crossroads.scenario.spec import validate_scenario
 
     return validate_scenario(scenario.spec, source=f"stored scenario {scenario.id}",
                              check_references=False)
@@ -175,7 +128,7 @@ def create_batch(*, session: Session, scenario: Scenario, policy: Policy, runs: 
     ``warnings`` its network gave now (stored as NULL when there are none). At most ``MAX_RUNS``
     runs: the runner derives every seed before the first episode, so a batch beyond that would
     spend its start-up building seeds."""
-    from crossroads.evaluation.scenario import MAX_RUNS
+    from crossroads.scenario.spec import MAX_RUNS
 
     if not 1 <= runs <= MAX_RUNS:
         raise ValueError(f"runs must be in 1..{MAX_RUNS}, got {runs}")
@@ -338,7 +291,7 @@ def record_episode(*, session: Session, batch_id: int, run_index: int, seed: int
         fields = {
             "outcome": data["outcome"], "travel_time_s": _finite(data.get("travel_time_s")),
             "steps": data.get("steps"), "time_s": _finite(data.get("time_s")),
-            "min_distance_m": _finite(data.get("min_distance_m")),
+            "min_distance_m": _finite(data.get("min_distance_m")), "min_gap_m": _finite(data.get("min_gap_m")),
             "detail": data.get("detail") or "", "collided_with": data.get("collided_with"),
             "events": list(data.get("events") or []),
         }

@@ -2,7 +2,7 @@
 
 scenarios ─< batches >─ policies;  batches ─< episodes >─ traces (optional, one per episode).
 
-Identity: a scenario is its :func:`~crossroads.evaluation.scenario.content_hash` (the canonical
+Identity: a scenario is its :func:`~crossroads.scenario.spec.content_hash` (the canonical
 spec JSON is stored beside it); a policy is its ``file_hash`` (``sha256:<hex>`` of a checkpoint
 file, ``builtin:rule`` for a built-in). An episode is ``(batch_id, run_index)``: unique, so a
 resumed batch can never record a run twice.
@@ -44,7 +44,7 @@ NAMING_CONVENTION = {
 BATCH_STATUSES = ("queued", "running", "done", "cancelled", "failed")
 EPISODE_OUTCOMES = ("passed", "collision", "red_light", "off_road", "timeout", "error")
 TRACE_MODES = ("all", "failed", "none")
-POLICY_KINDS = ("builtin", "checkpoint", "onnx", "plugin")  # how a policy is identified (crud.policy_identity)
+POLICY_KINDS = ("builtin", "checkpoint", "onnx", "plugin")  # how a policy is identified (crossroads.policy.identity)
 MAX_ROW_ID = 2**31 - 1  # ids and run indices are INTEGER columns: 32-bit on PostgreSQL
 
 
@@ -77,7 +77,7 @@ class Scenario(Base):
 
 class Policy(Base):
     """A driver: a built-in (``rule``), a trained checkpoint, an ONNX file or a Python plugin,
-    identified by its content (``crud.policy_identity``)."""
+    identified by its content (``crossroads.policy.identity``)."""
 
     __tablename__ = "policies"
 
@@ -162,6 +162,8 @@ class Episode(Base):
     steps: Mapped[int | None] = mapped_column(Integer, nullable=True)
     time_s: Mapped[float | None] = mapped_column(Float, nullable=True)  # [s] ego time
     min_distance_m: Mapped[float | None] = mapped_column(Float, nullable=True)  # [m] None: nobody
+    # [m] closest footprint gap to one closing in (<= 0: touching); None: nobody, or recorded before 0006
+    min_gap_m: Mapped[float | None] = mapped_column(Float, nullable=True)
     detail: Mapped[str] = mapped_column(Text, default="")
     collided_with: Mapped[str | None] = mapped_column(String(16), nullable=True)
     events: Mapped[list[Any]] = mapped_column(JSON, default=list)

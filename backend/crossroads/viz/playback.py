@@ -34,7 +34,7 @@ JunctionLoader = Callable[[Trace], Junction]
 
 def junction_of(trace: Trace, net: str | Path | None = None) -> Junction:
     """The junction a trace was recorded on (``net`` overrides the header's network)."""
-    from crossroads.network.resolve import open_junction
+    from crossroads.intersections.resolve import open_junction
 
     return open_junction(str(net) if net is not None else trace.header["net"], trace.header.get("junction"))
 

@@ -10,7 +10,7 @@ import numpy as np
 import torch
 from support import REPO_ROOT
 
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.rl.networks import make_networks
 from crossroads.sim.config import EgoStart, WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC

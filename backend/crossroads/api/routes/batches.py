@@ -34,8 +34,8 @@ from crossroads.api.schemas import (
     EpisodePublic,
 )
 from crossroads.evaluation.batch import summarize_batch
-from crossroads.evaluation.network_checks import batch_warnings
-from crossroads.evaluation.scenario import MAX_RUNS
+from crossroads.scenario.network_checks import batch_warnings
+from crossroads.scenario.spec import MAX_RUNS
 from crossroads.store import Store, crud
 from crossroads.store.crud import FINISHED_STATUSES
 from crossroads.store.tables import BATCH_STATUSES, EPISODE_OUTCOMES, MAX_ROW_ID, Batch

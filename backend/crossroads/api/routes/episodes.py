@@ -22,6 +22,7 @@ def episode_public(e: Episode) -> EpisodePublic:
     return EpisodePublic(
         batch_id=e.batch_id, run_index=e.run_index, seed=e.seed, outcome=e.outcome, passed=e.passed,
         travel_time_s=e.travel_time_s, steps=e.steps, time_s=e.time_s, min_distance_m=e.min_distance_m,
+        min_gap_m=e.min_gap_m,
         detail=e.detail, collided_with=e.collided_with, events=list(e.events or []),
         error_message=e.error_message, wall_s=e.wall_s, has_trace=e.trace_id is not None)
 

@@ -12,13 +12,13 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Depends, HTTPException, Path, Query, Response
 
 from crossroads.api.params import Page, paging
-from crossroads.evaluation.network_checks import program_json
+from crossroads.scenario.network_checks import program_json
 from crossroads.constants import RHO_BEZIER
-from crossroads.network import catalogue
+from crossroads.intersections import catalogue
 from crossroads.network.export import junction_geometry
 from crossroads.geometry import FloatArray
 from crossroads.network.model import Junction
-from crossroads.network.resolve import open_junction
+from crossroads.intersections.resolve import open_junction
 from crossroads.planning import CandidatePath, PlanningError, plan_candidates
 from crossroads.planning.internal_lanes import internal_lane_offsets, offset_warning, path_offset, worst_offset
 

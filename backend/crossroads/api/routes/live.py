@@ -3,22 +3,26 @@
 ``POST /live`` checks the request like a batch (422 naming the field), starts the episode in a
 child process and answers at once (202) with the viewer's URL; ``GET /live/{id}`` tells where it
 stands and its result; ``POST /live/{id}/stop`` ends it early. See :mod:`crossroads.api.live`.
+
+The viewer's page is ``/live/{id}/view/`` and its WebSocket ``/live/{id}/view``, handed on to the
+run's viser server (on a loopback port) by :mod:`crossroads.api.viewer_proxy`.
 """
 
 from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, HTTPException, Request, Response, status
+from fastapi import APIRouter, Depends, HTTPException, Request, Response, WebSocket, status
+from fastapi.responses import HTMLResponse, RedirectResponse
 
 from crossroads.api.deps import LiveDep, OptionsDep, SessionDep, SettingsDep, unprocessable
 from crossroads.api.live import LiveBusyError, LiveRun
 from crossroads.api.params import LiveId, Page, paging
-from crossroads.api.routes.playback import viewer_url
 from crossroads.api.routes.policies import models_dir, policy_ref
 from crossroads.api.routes.scenarios import parse_scenario
 from crossroads.api.schemas import LiveCreate, LivePublic
-from crossroads.evaluation.scenario import ScenarioSpec, run_seeds
+from crossroads.api.viewer_proxy import fetch_page, proxy_websocket
+from crossroads.scenario.spec import ScenarioSpec, run_seeds
 from crossroads.settings import Settings
 from crossroads.store import crud
 
@@ -38,8 +42,13 @@ def _scenario(body: LiveCreate, session: SessionDep, settings: Settings) -> Scen
     return parse_scenario(row.spec, settings, prefix=("body", "scenario_id"))
 
 
+def view_path(run_id: int) -> str:
+    """Where the browser opens a live run's viewer (its WebSocket: the same without the slash)."""
+    return f"/api/live/{run_id}/view/"
+
+
 def _public(run: LiveRun, request: Request) -> LivePublic:
-    return LivePublic(**run.public(), url=viewer_url(request, run.port))
+    return LivePublic(**run.public(), url=view_path(run.id))
 
 
 def _get(live: LiveDep, run_id: int) -> LiveRun:
@@ -85,3 +94,28 @@ def stop_live(run_id: LiveId, request: Request, live: LiveDep) -> LivePublic:
     run = _get(live, run_id)
     live.stop(run_id)
     return _public(run, request)
+
+
+@router.get("/{run_id}/view", include_in_schema=False)
+def view_without_slash(run_id: LiveId) -> RedirectResponse:
+    return RedirectResponse(view_path(run_id), status_code=307)
+
+
+@router.get("/{run_id}/view/", response_class=HTMLResponse)
+def view_page(run_id: LiveId, request: Request, live: LiveDep) -> Response:
+    """The live run's 3D view (viser's page, from the run's own viewer)."""
+    run = _get(live, run_id)
+    return fetch_page(run.port, "/", request.headers.get("accept-encoding", ""))
+
+
+@router.websocket("/{run_id}/view")
+@router.websocket("/{run_id}/view/")
+async def view_socket(websocket: WebSocket, run_id: LiveId) -> None:
+    """The viewer's WebSocket, joined to the run's viser server (refused when the run is gone)."""
+    live = getattr(websocket.app.state, "live", None)
+    run = live.get(run_id) if live is not None else None
+    if run is None:
+        await websocket.close(code=1008, reason=f"no live run {run_id}")
+        return
+    settings = websocket.app.state.settings
+    await proxy_websocket(websocket, run.port, allowed_hosts=tuple(settings.allowed_hosts))

@@ -12,7 +12,8 @@ from crossroads.api.deps import OptionsDep, SettingsDep, unprocessable
 from crossroads.api.params import Page, paging
 from crossroads.api.routes.policy_uploads import uploaded_policies, uploaded_ref
 from crossroads.api.schemas import PolicyPublic
-from crossroads.evaluation.policies import BUILTIN_POLICIES, SHIELD_SUFFIX, SUMO_DRIVER, PolicyRef, read_model_card
+from crossroads.policy.ref import BUILTIN_POLICIES, SHIELD_SUFFIX, SUMO_DRIVER, PolicyRef
+from crossroads.policy.identity import read_model_card
 
 router = APIRouter(prefix="/policies", tags=["policies"])
 

@@ -37,7 +37,7 @@ from crossroads.api.body_limit import reads_own_body
 from crossroads.api.deps import OptionsDep, SettingsDep
 from crossroads.api.schemas import PolicyPublic
 from crossroads.evaluation.onnx_policy import OnnxError, OnnxNetworks
-from crossroads.evaluation.policies import SHIELD_SUFFIX, PolicyRef
+from crossroads.policy.ref import SHIELD_SUFFIX, PolicyRef
 
 router = APIRouter(prefix="/policies", tags=["policies"])
 

@@ -1,4 +1,6 @@
-"""Scenarios: create, read, update, delete, validate, and the JSON Schema of a scenario.
+"""Scenarios: create, read, update, delete, validate, and the JSON Schema of a scenario; a stored
+scenario as a YAML file (``GET /scenarios/{id}/scenario.yaml``) and a YAML file stored
+(``POST /scenarios/import``, the file as the body), the format ``crossroads run`` reads.
 
 A scenario is stored by its content hash (the same spec twice is one row). A scenario that
 batches ran with is read-only (its results refer to it): PUT and DELETE answer 409, and a
@@ -6,7 +8,7 @@ changed scenario is POSTed as a new one. An ``{net: ...}`` intersection must nam
 uploaded through POST /intersections/upload (``uploads/<sha256>.net.xml``, relative to the data
 directory); the API reads no other file of the server. What a scenario asks of its network
 (approach, ego start, light phase) is checked against the network
-(``evaluation/network_checks.py``).
+(``scenario/network_checks.py``).
 """
 
 from __future__ import annotations
@@ -15,15 +17,17 @@ import json
 from pathlib import PurePosixPath
 from typing import Annotated, Any
 
+import yaml
 from fastapi import APIRouter, Body, Depends, HTTPException, Response, status
+from fastapi.responses import PlainTextResponse
 from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from crossroads.api.deps import SessionDep, SettingsDep, unprocessable
 from crossroads.api.params import Page, ScenarioId, paging, set_total
 from crossroads.api.schemas import Problem, ScenarioPublic, ScenarioValidation
-from crossroads.evaluation.network_checks import internal_lane_warning, network_problems
-from crossroads.evaluation.scenario import (
+from crossroads.scenario.network_checks import internal_lane_warning, network_problems
+from crossroads.scenario.spec import (
     ScenarioSpec,
     canonical_json,
     content_hash,
@@ -131,6 +135,50 @@ def create_scenario(data: ScenarioBody, session: SessionDep, settings: SettingsD
         return _public(existing, _batch_count(session, existing.id))
     row = crud.get_or_create_scenario(session=session, spec=spec)
     return _public(row, 0)
+
+
+YAML_TYPE = "application/yaml"
+YamlBody = Annotated[str, Body(media_type=YAML_TYPE, description="A scenario file (YAML, format version 1)")]
+
+
+def scenario_yaml(spec: dict[str, Any], header: str) -> str:
+    """A stored scenario as the YAML file ``crossroads run`` reads (every field, in its order)."""
+    body = yaml.safe_dump(spec, sort_keys=False, allow_unicode=True, default_flow_style=False, width=100)
+    return f"# {header}\n{body}"
+
+
+def parse_yaml(text: str) -> Any:
+    """The data of a YAML file; a 422 naming the line and column of a syntax error."""
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark is not None else ""
+        raise unprocessable([("", f"not YAML: {where}{getattr(exc, 'problem', None) or exc}")]) from None
+    if not isinstance(data, dict):
+        kind = "an empty file" if data is None else f"a {type(data).__name__}"
+        raise unprocessable([("", f"expected a mapping of fields at the top level, got {kind}")])
+    return data
+
+
+@router.post("/import", status_code=status.HTTP_201_CREATED,
+             responses={200: {"description": "the same scenario was stored already"}})
+def import_scenario(text: YamlBody, session: SessionDep, settings: SettingsDep,
+                    response: Response) -> ScenarioPublic:
+    """Store a scenario given as a YAML file (the request body, ``Content-Type: application/yaml``);
+    answers as ``POST /scenarios`` does, a problem naming its field."""
+    return create_scenario(parse_yaml(text), session, settings, response)
+
+
+@router.get("/{scenario_id}/scenario.yaml", response_class=PlainTextResponse,
+            responses={200: {"content": {YAML_TYPE: {}}}})
+def scenario_file(scenario_id: ScenarioId, session: SessionDep) -> PlainTextResponse:
+    """A stored scenario as a YAML file (``crossroads run`` reads it; import it again here)."""
+    row = _get(session, scenario_id)
+    text = scenario_yaml(row.spec, f"Crossroads scenario #{row.id} ({row.name}), sha256 {row.content_hash}")
+    filename = "".join(c if c.isalnum() or c in "-_." else "_" for c in row.name) or f"scenario-{row.id}"
+    return PlainTextResponse(text, media_type=YAML_TYPE,
+                             headers={"Content-Disposition": f'attachment; filename="{filename}.yaml"'})
 
 
 @router.get("/{scenario_id}")

@@ -17,7 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from crossroads.api.deps import OptionsDep, SessionDep, SettingsDep, StoreDep, unprocessable
 from crossroads.api.routes.policies import models_dir, policy_ref
-from crossroads.evaluation.scenario import validate_scenario
+from crossroads.scenario.spec import validate_scenario
 from crossroads.search import records
 from crossroads.search.collection import failure_yaml
 from crossroads.search.engine import SearchRunner, create_search_for, failure_json, summarize_search

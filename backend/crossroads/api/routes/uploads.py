@@ -31,12 +31,12 @@ from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response
 from crossroads.api.body_limit import reads_own_body
 from crossroads.api.deps import OptionsDep, SettingsDep
 from crossroads.api.params import Page, paging
-from crossroads.evaluation.network_checks import program_json, uploaded_name
+from crossroads.scenario.network_checks import program_json, uploaded_name
 from crossroads.api.routes.intersections import geometry_with_program, internal_lanes_of, paths_of, signal_links
 from crossroads.constants import RHO_BEZIER
 from crossroads.network.export import junction_geometry
 from crossroads.network.junction import JunctionError, read_junction
-from crossroads.network.resolve import open_junction
+from crossroads.intersections.resolve import open_junction
 
 router = APIRouter(prefix="/intersections", tags=["intersections"])
 

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from crossroads.network import build as build_module
-from crossroads.network.catalogue import (
+from crossroads.intersections import build as build_module
+from crossroads.intersections.catalogue import (
     UnknownIntersectionError, build, intersections_dir, list_intersections, load_spec,
 )
 from crossroads.validation import SpecError

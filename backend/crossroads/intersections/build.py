@@ -13,7 +13,8 @@ What is written (SUMO "plain XML", https://sumo.dlr.de/docs/Networks/PlainXML.ht
 * ``program.tll.xml``: the static signal program of SPEC §2.
 
 Link indices of a traffic light are assigned by netconvert, so the build has two passes:
-pass 1 builds the net with SUMO's default program, we read the link index of every connection and
+pass 1 builds the net with SUMO's default program (twice: the second time with each crossing's
+ends moved onto the kerb, :mod:`crossroads.intersections.crossing_ends`, from the first's geometry), we read the link index of every connection and
 crossing, compute the state strings, and pass 2 (``netconvert -s pass1.net.xml --tllogic-files``)
 replaces the program. The build then checks that SUMO's own turn classification (``dir``) agrees
 with the spec's and that link indices did not move between the passes.
@@ -27,8 +28,9 @@ placed the ego, its followers and its foes where the ego was not.
 
 Cache: a build lives in ``<cache root>/<key>/`` where the key hashes the canonical spec JSON,
 :data:`BUILD_VERSION` and the SUMO version. The cache root is ``$CROSSROADS_CACHE_DIR`` or
-``~/.cache/crossroads/nets``. Builds happen in a temporary sibling directory renamed into place
-at the end, so a failed or interrupted build never leaves a half-written entry.
+``~/.cache/crossroads/nets`` (:func:`crossroads.settings.net_cache_dir`). Builds happen in a
+temporary sibling directory renamed into place at the end, so a failed or interrupted build never
+leaves a half-written entry.
 """
 
 from __future__ import annotations
@@ -48,14 +50,18 @@ from importlib import metadata
 from pathlib import Path
 from typing import Literal
 
+import numpy as np
+
 from crossroads.constants import ALL_RED_S, PEDESTRIAN_CLEARANCE_S
 
+from crossroads.intersections.crossing_ends import Shape, kerbside_crossing_shapes
+from crossroads.intersections.spec import ApproachSpec, IntersectionSpec
 from crossroads.network.junction import read_junction
-from crossroads.network.spec import ApproachSpec, IntersectionSpec
 from crossroads.planning.drivable import road_check
 from crossroads.planning.routes import PlanningError, build_candidate
+from crossroads.settings import net_cache_dir
 
-BUILD_VERSION = "3"  # bump whenever the written XML or the netconvert options change
+BUILD_VERSION = "5"  # bump whenever the written XML or the netconvert options change
 JUNCTION_ID = "C"  # the junction's node id, also the traffic light's id
 NET_FILE = "net.net.xml"
 BUILD_INFO_FILE = "build.json"
@@ -103,7 +109,7 @@ def build_network(spec: IntersectionSpec, out_dir: str | Path | None = None, *, 
     ``out_dir`` that is not a Crossroads build is never overwritten.
     """
     key = cache_key(spec)
-    entry = Path(out_dir) if out_dir is not None else cache_root() / key
+    entry = Path(out_dir) if out_dir is not None else net_cache_dir() / key
     if not force and _is_build_of(entry, key):
         return entry / NET_FILE
     if entry.exists() and not _is_build_dir(entry) and any(entry.iterdir()):
@@ -125,12 +131,6 @@ def build_network(spec: IntersectionSpec, out_dir: str | Path | None = None, *, 
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
     return entry / NET_FILE
-
-
-def cache_root() -> Path:
-    """Directory holding cached builds: ``$CROSSROADS_CACHE_DIR`` or ``~/.cache/crossroads/nets``."""
-    env = os.environ.get("CROSSROADS_CACHE_DIR")
-    return Path(env).expanduser() if env else Path.home() / ".cache" / "crossroads" / "nets"
 
 
 def cache_key(spec: IntersectionSpec) -> str:
@@ -184,10 +184,15 @@ def _build_into(spec: IntersectionSpec, work: Path, key: str) -> None:
     log = work / "netconvert.log"
 
     first = work / "pass1.net.xml"
-    _netconvert(
-        ["--node-files", plain["nod"], "--edge-files", plain["edg"], "--connection-files", plain["con"],
-         "--output-file", first], log, spec.name,
-    )
+    pass1 = ["--node-files", plain["nod"], "--edge-files", plain["edg"], "--connection-files", plain["con"],
+             "--output-file", first]
+    _netconvert(pass1, log, spec.name)
+    # again, with the crossings' ends on the kerb and off the car lanes to be (the connection
+    # shapes below), where people wait (intersections/crossing_ends.py)
+    planned, _ = _connection_shapes_xml(spec, first)
+    crossing_shapes = kerbside_crossing_shapes(first, _car_paths(planned, first))
+    _write_xml(_connections_xml(spec, crossing_shapes), plain["con"])
+    _netconvert(pass1, log, spec.name)
     links = _tls_links(spec, first)
     _write_xml(_program_xml(spec, links), work / "program.tll.xml")
     shapes, unshaped = _connection_shapes_xml(spec, first)
@@ -209,6 +214,16 @@ def _build_into(spec: IntersectionSpec, work: Path, key: str) -> None:
             "net_file": NET_FILE, "tl_id": JUNCTION_ID}
     # Written last: a directory with build.json is a complete build.
     (work / BUILD_INFO_FILE).write_text(json.dumps(info, indent=1))
+
+
+def _car_paths(shapes: ET.Element, net_file: Path) -> list[tuple[np.ndarray, float]]:
+    """(centre line, width) of every shaped connection of ``shapes``, its width its entrance lane's."""
+    widths = {lane.get("id", ""): float(lane.get("width", "3.2")) for lane in ET.parse(net_file).getroot().iter("lane")}
+    paths = []
+    for c in shapes.iter("connection"):
+        points = np.array([[float(v) for v in p.split(",")] for p in c.get("shape", "").split()])
+        paths.append((points, widths.get(f"{c.get('from')}_{c.get('fromLane')}", 3.2)))
+    return paths
 
 
 def _netconvert(args: list[str | Path], log: Path, name: str) -> None:
@@ -337,7 +352,9 @@ def _bike_links(spec: IntersectionSpec) -> list[tuple[str, int, str, int]]:
     return links
 
 
-def _connections_xml(spec: IntersectionSpec) -> ET.Element:
+def _connections_xml(spec: IntersectionSpec, crossing_shapes: dict[frozenset[str], Shape] | None = None) -> ET.Element:
+    """The spec's lane links, bicycle links and crossings; a crossing whose crossed edges are in
+    ``crossing_shapes`` gets that centre line as its ``shape``."""
     root = ET.Element("connections")
     for link in spec.lane_links():
         a, b = spec.approach(link.from_leg), spec.approach(link.to_leg)
@@ -351,7 +368,11 @@ def _connections_xml(spec: IntersectionSpec) -> ET.Element:
         })
     for a in spec.approaches:
         if a.crossing:
-            ET.SubElement(root, "crossing", node=JUNCTION_ID, edges=f"{a.in_edge} {a.out_edge}", priority="true")
+            attrs = {"node": JUNCTION_ID, "edges": f"{a.in_edge} {a.out_edge}", "priority": "true"}
+            shape = (crossing_shapes or {}).get(frozenset((a.in_edge, a.out_edge)))
+            if shape is not None:
+                attrs["shape"] = " ".join(f"{x:.3f},{y:.3f}" for x, y in shape)
+            ET.SubElement(root, "crossing", attrs)
     return root
 
 

@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 from shapely.geometry import LineString, Point
 
-from crossroads.network import build as build_mod
-from crossroads.network.build import (
+from crossroads.intersections import build as build_mod
+from crossroads.intersections.build import (
     NetworkBuildError, build_network, cache_key, read_tls_links,
 )
-from crossroads.network.catalogue import list_intersections, load_spec
+from crossroads.intersections.catalogue import list_intersections, load_spec
 from crossroads.network.junction import read_junction
-from crossroads.network.spec import IntersectionSpec
+from crossroads.intersections.spec import IntersectionSpec
 from crossroads.planning.routes import build_candidate
 
 SIX = ["a_single_lane", "b_two_lane", "c_three_lane", "d_irregular_skewed", "e_irregular_oblique",

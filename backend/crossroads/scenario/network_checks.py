@@ -6,7 +6,7 @@ fits on the road before the stop line (``sim.start``, the world's own rule), whe
 (an exact phase, or the ego's colour, and the program) are in the signal program. A batch would
 only find out in its workers, as one error per episode; the API (a 422 naming the field),
 ``crossroads run`` and ``crossroads evaluate`` (before any batch starts) check them here instead.
-The junction is read through :func:`~crossroads.network.resolve.open_junction` and the signal
+The junction is read through :func:`~crossroads.intersections.resolve.open_junction` and the signal
 program through a cache of its own, so a check after the first costs next to nothing.
 """
 
@@ -18,12 +18,12 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from crossroads.evaluation.scenario import ScenarioSpec, net_path
+from crossroads.intersections.resolve import NetworkNotFoundError, open_junction
 from crossroads.network.junction import JunctionError
 from crossroads.network.model import Approach, Junction
-from crossroads.network.resolve import NetworkNotFoundError, open_junction
 from crossroads.planning import PlanningError, plan_candidates
 from crossroads.planning.internal_lanes import internal_lane_offsets, offset_warning
+from crossroads.scenario.spec import ScenarioSpec, net_path
 from crossroads.sim.signals import (
     SignalError,
     TlProgram,
@@ -162,7 +162,7 @@ def _other_programs_hint(junction: Junction, program: TlProgram, link: int, ligh
 
 def network_problems(spec: ScenarioSpec, base_dir: str | Path | None = None) -> Problems:
     """Every field of ``spec`` its network contradicts, as ``(field, message)`` pairs; a
-    ``{net: ...}`` path is taken relative to ``base_dir`` (see ``evaluation.scenario.net_path``)."""
+    ``{net: ...}`` path is taken relative to ``base_dir`` (see ``scenario.spec.net_path``)."""
     junction, problems = _junction_of(spec, None if base_dir is None else Path(base_dir))
     if junction is None:
         return problems

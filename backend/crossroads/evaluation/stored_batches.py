@@ -1,4 +1,4 @@
-"""Stored batches as the rows of a report (evaluation/report.py draws them)."""
+"""Stored batches as the rows of a report (evaluation/report.py draws them): the store read for a report."""
 
 from __future__ import annotations
 

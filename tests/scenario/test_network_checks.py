@@ -1,4 +1,4 @@
-"""What a batch keeps of its network's warnings (evaluation/network_checks.py)."""
+"""What a batch keeps of its network's warnings (scenario/network_checks.py)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from crossroads.evaluation import network_checks
-from crossroads.evaluation.network_checks import batch_warnings, internal_lane_warning, network_problems
-from crossroads.evaluation.scenario import ScenarioSpec, validate_scenario
+from crossroads.scenario import network_checks
+from crossroads.scenario.network_checks import batch_warnings, internal_lane_warning, network_problems
+from crossroads.scenario.spec import ScenarioSpec, validate_scenario
 from crossroads.planning.routes import PlanningError
 from crossroads.validation import SpecError
 from support import COLOGNE1_NET, SUMO_CROSS_NET, sumo_example

@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from crossroads.constants import EVALUATION_RUNS, OVERSPEED_LEVELS, OVERSPEED_SHARE, ROUNDING_LEVELS
-from crossroads.evaluation.scenario import load_scenarios, to_world_config
-from crossroads.network.catalogue import list_intersections
+from crossroads.scenario.spec import load_scenarios, to_world_config
+from crossroads.intersections.catalogue import list_intersections
 from crossroads.sim.config import WorldConfig
 from support import REPO_ROOT
 

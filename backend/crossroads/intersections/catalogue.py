@@ -2,8 +2,7 @@
 
 The paper's six intersections (Fig. 2 (a)-(f)) ship with the repository; users may add more.
 The directory is ``$CROSSROADS_SCENARIOS_DIR/intersections`` when that variable is set, else
-``<repository root>/scenarios/intersections``, the repository root found from this package's
-location (``backend/crossroads/network/`` -> three levels up from ``crossroads``).
+``<repository root>/scenarios/intersections`` (:func:`crossroads.settings.scenarios_dir`).
 """
 
 from __future__ import annotations
@@ -11,8 +10,9 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from crossroads.network.build import build_network
-from crossroads.network.spec import IntersectionSpec
+from crossroads.intersections.build import build_network
+from crossroads.intersections.spec import IntersectionSpec
+from crossroads.settings import scenarios_dir
 from crossroads.validation import load_yaml_model
 
 SUFFIXES = (".yaml", ".yml")
@@ -23,15 +23,6 @@ class UnknownIntersectionError(KeyError):
 
     def __str__(self) -> str:  # KeyError would print the message quoted
         return str(self.args[0])
-
-
-def scenarios_dir() -> Path:
-    """Root of the scenario files: ``$CROSSROADS_SCENARIOS_DIR`` or ``<repo>/scenarios``."""
-    env = os.environ.get("CROSSROADS_SCENARIOS_DIR")
-    if env:
-        return Path(env).expanduser()
-    # this file: <repo>/backend/crossroads/network/catalogue.py
-    return Path(__file__).resolve().parents[3] / "scenarios"
 
 
 def intersections_dir() -> Path:

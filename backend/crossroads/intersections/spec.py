@@ -3,7 +3,7 @@
 An intersection is one junction ("C", at the origin of SUMO's frame) with 3 to 5 legs. Each leg
 has an entrance edge (towards the junction) and an exit edge (away from it). The geometry is
 given by compass bearings, so skewed and irregular junctions are one number away from regular
-ones. :mod:`crossroads.network.build` turns a spec into a SUMO network.
+ones. :mod:`crossroads.intersections.build` turns a spec into a SUMO network.
 
 Conventions
 -----------

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from crossroads.constants import CROSS_GREEN_S, GREEN_S, YELLOW_S
-from crossroads.network.spec import IntersectionSpec, relative_turn_deg
+from crossroads.intersections.spec import IntersectionSpec, relative_turn_deg
 from crossroads.validation import SpecError, load_yaml_model, validate_model
 
 ALL = ["right", "straight", "left"]

@@ -12,7 +12,7 @@ Errors are :class:`~crossroads.validation.SpecError`\\ s naming the file and the
 What is *not* checked here, on purpose: whether the task is possible from the approach, whether
 ``approach`` / ``ego.entrance_lane`` exist, whether the start distance fits on the road and whether
 ``lights`` exist in the signal program. Those need the built network and are checked by
-:mod:`crossroads.evaluation.network_checks` (run, evaluate, the API and the studio), and the world.
+:mod:`crossroads.scenario.network_checks` (run, evaluate, the API and the studio), and the world.
 """
 
 from __future__ import annotations
@@ -44,8 +44,8 @@ from crossroads.constants import (
     V_LIMIT_MPS,
     VEHICLES_PER_HOUR_PER_LANE,
 )
-from crossroads.network import catalogue
-from crossroads.network.resolve import NET_SUFFIXES, NetworkNotFoundError, resolve_net
+from crossroads.intersections import catalogue
+from crossroads.intersections.resolve import NET_SUFFIXES, NetworkNotFoundError, resolve_net
 from crossroads.sim.abnormal import AbnormalConfig
 from crossroads.sim.config import (
     DEFAULT_GRIDLOCK_STAND_S,
@@ -283,6 +283,10 @@ class ScenarioSpec(BaseModel):
         description="[s] A participant other than the ego that stands this long inside the junction "
         "(on an internal lane or a crossing) is removed, and the removal is an episode event; "
         "null turns this gridlock breaker off.")
+    pedestrian_courtesy: bool = Field(
+        default=True,
+        description="Pedestrians stop rather than walk into the ego while it stands (sim/courtesy.py); "
+        "false keeps SUMO's pedestrians, who walk their crossings whatever stands on them.")
     runs: int = Field(default=EVALUATION_RUNS, ge=1, le=MAX_RUNS, description="[-] Episodes per policy (paper: 200).")
     seed: int = Field(
         default=0, ge=0, le=MAX_SEED,
@@ -445,7 +449,7 @@ def abnormal_config(spec: ScenarioSpec) -> AbnormalConfig:
 
 def to_world_config(spec: ScenarioSpec, base_dir: str | Path | None = None) -> WorldConfig:
     """The :class:`WorldConfig` of a spec. Resolves the network through
-    :func:`crossroads.network.resolve.resolve_net` (a catalogue name is built by netconvert, cached);
+    :func:`crossroads.intersections.resolve.resolve_net` (a catalogue name is built by netconvert, cached);
     a relative net path counts from ``base_dir`` (the scenario file's directory; default: cwd).
 
     Raises :class:`SpecError` (field ``intersection``) when the network cannot be found.
@@ -486,6 +490,7 @@ def to_world_config(spec: ScenarioSpec, base_dir: str | Path | None = None) -> W
         warmup_s=spec.warmup_s,
         timeout_s=spec.timeout_s,
         gridlock_stand_s=spec.gridlock_stand_s,
+        pedestrian_courtesy=spec.pedestrian_courtesy,
         perception_noise=spec.perception_noise,
         rho=spec.rho,
     )

@@ -1,0 +1,94 @@
+"""Pedestrians stop rather than walk into a standing ego: the geometry, and the rule in SUMO."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from crossroads.intersections import catalogue
+from crossroads.sim.courtesy import PedestrianCourtesy, walking_into
+from crossroads.sim.sumo import SumoSession
+from crossroads.sim.traffic import VTYPES_XML
+
+EGO = (0.0, 0.0, 0.0, 4.8, 2.0)  # x, y, heading (east), length, width
+
+
+def _into(x: float, y: float, heading: float, speed: float) -> bool:
+    return bool(walking_into(*EGO, np.array([x]), np.array([y]), np.array([heading]), np.array([speed]))[0])
+
+
+def test_walking_at_the_cars_side_is_walking_into_it() -> None:
+    assert _into(0.0, 2.0, -np.pi / 2, 1.3)  # 1 m from the side, walking toward it
+
+
+def test_walking_away_past_or_far_is_not() -> None:
+    assert not _into(0.0, 2.0, np.pi / 2, 1.3)  # walking away
+    assert not _into(0.0, 3.0, 0.0, 1.3)  # walking past, 2 m from the side
+    assert not _into(0.0, 5.0, -np.pi / 2, 1.3)  # walking toward it, 4 m out: more than a second
+
+
+def test_already_touching_is_the_judges_business() -> None:
+    assert not _into(2.0, 0.5, 0.0, 1.3)
+
+
+class _Recorder:
+    def __init__(self) -> None:
+        self.calls: list[tuple[str, str]] = []
+
+    def hold_person(self, pid: str) -> None:
+        self.calls.append(("hold", pid))
+
+    def release_person(self, pid: str) -> None:
+        self.calls.append(("release", pid))
+
+
+def _update(rule: PedestrianCourtesy, session: _Recorder, y: float, ego_speed: float) -> None:
+    rule.update(session, np.array(["p"]), np.array([0.0]), np.array([y]), np.array([-np.pi / 2]),  # type: ignore[arg-type]
+                np.array([1.3]), (0.0, 0.0, 0.0, ego_speed, 4.8, 2.0))
+
+
+def test_held_while_the_ego_stands_and_released_when_it_drives() -> None:
+    rule, session = PedestrianCourtesy(), _Recorder()
+    _update(rule, session, 2.0, 0.0)
+    _update(rule, session, 2.0, 0.0)  # still held: no second call
+    assert session.calls == [("hold", "p")]
+    assert rule.may_act(5.0)  # someone is held: the rule must look even at speed
+    _update(rule, session, 2.0, 5.0)
+    assert session.calls == [("hold", "p"), ("release", "p")] and not rule.held
+    assert not rule.may_act(5.0)
+
+
+def test_off_means_off() -> None:
+    rule, session = PedestrianCourtesy(enabled=False), _Recorder()
+    _update(rule, session, 2.0, 0.0)
+    assert session.calls == [] and not rule.may_act(0.0)
+
+
+@pytest.fixture(scope="module")
+def net() -> Path:
+    return catalogue.build("c_three_lane")
+
+
+def test_a_held_pedestrian_stands_in_sumo_and_walks_on_when_released(net: Path, tmp_path: Path) -> None:
+    routes = tmp_path / "p.rou.xml"
+    routes.write_text(f'<routes>\n{VTYPES_XML}    <person id="walker" type="pedestrian" depart="0">\n'
+                      '        <walk from="south_in" to="east_out"/>\n    </person>\n</routes>\n')
+    with SumoSession().start(net, [routes], seed=1) as session:
+        for _ in range(30):
+            session.step()
+        session.hold_person("walker")
+        session.step()
+        first = session.snapshot()
+        for _ in range(20):
+            session.step()
+        held = session.snapshot()
+        row0, row1 = list(first.ids).index("walker"), list(held.ids).index("walker")
+        assert np.hypot(held.x[row1] - first.x[row0], held.y[row1] - first.y[row0]) < 0.05
+        session.release_person("walker")
+        for _ in range(20):
+            session.step()
+        walked = session.snapshot()
+        row2 = list(walked.ids).index("walker")
+        assert np.hypot(walked.x[row2] - held.x[row1], walked.y[row2] - held.y[row1]) > 1.0
