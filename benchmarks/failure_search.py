@@ -19,6 +19,16 @@ the same outcome (target: all).
 ``--timeout S`` replaces the nominal scenario's episode timeout (the space is rewritten with the
 scenario inline): shorter episodes, the same failures before S. Exit status 1 when a target is
 missed.
+
+``--throughput N`` measures instead how fast trials run, side by side: the same search (uniform
+random sampler, N trials, the same seed, so the same points and scenario seeds) once with
+``--executor batch`` (a fresh batch worker process per trial, as searches ran before the pool) and
+once with ``--executor pool`` (the search's long-lived workers), each through the real command;
+trials per minute of each, and whether every trial ended the same in both, field for field
+(outcome, steps, times, near-miss figures): the batch worker runs a trial exactly as
+``crossroads evaluate`` runs its scenario file.
+
+    nice -n 10 python benchmarks/failure_search.py --throughput 16 --workers 2 --timeout 60 --seed 41
 """
 
 from __future__ import annotations
@@ -143,13 +153,74 @@ def failing_cells(db: str, search_id: int, bins: int = CELL_BINS) -> int:
     return len(cells)
 
 
+def stored_trials(db: str) -> dict[int, dict[str, Any]]:
+    """Trial number → params, seed, result of the (only) search in a store."""
+    from crossroads.search import records
+    from crossroads.store import open_store
+
+    store = open_store(db)
+    try:
+        with store.session() as session:
+            (search,) = records.list_searches(session=session)
+            return {t.number: {"params": t.params, "seed": t.seed, "result": t.result}
+                    for t in records.trials(session=session, search_id=search.id, kind="search")}
+    finally:
+        store.close()
+
+
+def throughput(args: argparse.Namespace, space: Path, work: Path, env: dict[str, str]) -> int:
+    """The same random search with a batch worker per trial, then on the pool: trials per minute
+    of each, and whether each trial ended the same."""
+    figures: dict[str, Any] = {"policy": args.policy, "space": str(args.space), "trials": args.throughput,
+                               "workers": args.workers, "seed": args.seed, "timeout_s": args.timeout,
+                               "load_average": list(os.getloadavg()), "executors": {}}
+    trials: dict[str, dict[int, dict[str, Any]]] = {}
+    for executor in ("batch", "pool"):
+        db = f"sqlite:///{work / f'throughput-{executor}.db'}"
+        start = time.perf_counter()
+        summary = crossroads("search", args.policy, "--space", str(space), "--budget", str(args.throughput),
+                             "--workers", str(args.workers), "--seed", str(args.seed), "--sampler", "random",
+                             "--executor", executor, "--shrink-limit", "0", "--db", db,
+                             "--failures-dir", str(work / f"throughput-failures-{executor}"), "--json", env=env)
+        wall = time.perf_counter() - start
+        assert isinstance(summary, dict)
+        trials[executor] = stored_trials(db)
+        steps = sum((t["result"] or {}).get("steps") or 0 for t in trials[executor].values())
+        figures["executors"][executor] = {
+            "wall_s": round(wall, 1), "trials_per_min": round(60.0 * summary["searched"] / wall, 2),
+            "steps": steps, "ms_per_step": round(1000.0 * wall / steps, 2) if steps else None,
+            "outcomes": summary["outcomes"]}
+        print(f"{executor}: {summary['searched']} trials in {wall:.1f} s = "
+              f"{figures['executors'][executor]['trials_per_min']} trials/min ({summary['outcomes']})", flush=True)
+    batch, pool = trials["batch"], trials["pool"]
+    same_points = batch.keys() == pool.keys() and all(
+        batch[n]["params"] == pool[n]["params"] and batch[n]["seed"] == pool[n]["seed"] for n in batch)
+    differ = [n for n in batch if batch[n]["result"] != pool.get(n, {}).get("result")]
+    figures["same_points"] = same_points
+    figures["same_results"] = len(batch) - len(differ)
+    figures["results_differ"] = {n: (batch[n]["result"], pool.get(n, {}).get("result")) for n in differ}
+    speedup = figures["executors"]["batch"]["wall_s"] / figures["executors"]["pool"]["wall_s"]
+    figures["speedup"] = round(speedup, 2)
+    print(json.dumps(figures, indent=2))
+    if args.out is not None:
+        args.out.write_text(json.dumps(figures, indent=2) + "\n")
+    print(f"trials per minute: batch worker per trial {figures['executors']['batch']['trials_per_min']}, "
+          f"pool {figures['executors']['pool']['trials_per_min']} ({speedup:.2f}x); the same trials: "
+          f"{same_points}; the same results: {figures['same_results']} of {len(batch)}", flush=True)
+    return 0 if same_points and not differ else 1
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--policy", default="models/apg.pt+shield")
     parser.add_argument("--space", type=Path, default=REPO_ROOT / "scenarios/search/c_three_lane-left.yaml")
     parser.add_argument("--budget", type=int, default=1000, help="search episodes per arm")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=41, help="the searches' seed (the scenario seeds are drawn from it)")
+    parser.add_argument("--executor", choices=("pool", "batch"), default="pool",
+                        help="where the searches' trials run (crossroads search --executor)")
+    parser.add_argument("--throughput", type=int, default=None, metavar="N",
+                        help="measure trials per minute instead: N random trials with each executor")
     parser.add_argument("--timeout", type=float, default=None, help="episode timeout [s] (default: the scenario's)")
     parser.add_argument("--shrink-steps", type=int, default=None, help="per failure (default: 2 per parameter)")
     parser.add_argument("--shrink-limit", type=int, default=None, help="shrink the first N failures of each arm")
@@ -165,12 +236,15 @@ def main() -> int:
     work.mkdir(parents=True, exist_ok=True)
     env = {**os.environ, "CROSSROADS_DATA_DIR": str(work / "data")}
     space = space_file(args.space.resolve(), args.timeout, work)
+    if args.throughput is not None:
+        return throughput(args, space, work, env)
     db = f"sqlite:///{work / 'search.db'}"
     arms: dict[str, dict[str, Any]] = stored_arms(db) if args.recount else {}
     for sampler in () if args.recount else ("tpe", "random"):
         start = time.perf_counter()
         command = ["search", args.policy, "--space", str(space), "--budget", str(args.budget),
                    "--workers", str(args.workers), "--seed", str(args.seed), "--sampler", sampler,
+                   "--executor", args.executor,
                    "--db", db, "--failures-dir", str(work / f"failures-{sampler}"),
                    "--report", str(work / f"report-{sampler}.html"), "--json"]
         if args.shrink_steps is not None:

@@ -17,8 +17,11 @@ The same episodes, the same actions, four ways, alternating, in one process:
 The actions are the rule controller's, recorded once per seed (paper traffic), and replayed; resets
 are not timed (all four do the same warm-up). Times are the process's CPU time
 (``time.process_time``: libsumo runs in this process), so that other work on a shared machine
-counts less; the rates are printed per round with their median and best (on a loaded machine the
-best of several rounds is the steadier figure). Target (issue 40): gym ≥ 90 % of bare.
+counts less; the rates are printed per round with their median and best. The four loops take
+turns going first, and each episode's gym / bare is also taken on its own, the two run within a
+second or two of each other: on a loaded machine the median of those pairs follows the load least.
+The environment's fast paths give the plain formulation's numbers (tests/gym_env/test_exact.py).
+Target (issue 40): gym ≥ 90 % of bare.
 """
 
 from __future__ import annotations
@@ -132,14 +135,21 @@ def main() -> None:
             "state": lambda seed, actions: time_world(world, seed, actions, True),
             "gym": lambda seed, actions: time_env(env, seed, actions)}
     rates: dict[str, list[float]] = {name: [] for name in runs}
+    paired: list[float] = []  # gym / bare of one episode, the two run one after the other
+    names = list(runs)
     try:
-        for _ in range(args.repeats):
+        for round_index in range(args.repeats):
             totals: dict[str, list[float]] = {k: [0, 0.0] for k in rates}
-            for seed, actions in recorded.items():
-                for name, run in runs.items():
-                    steps, seconds = run(seed, actions)
+            for k, (seed, actions) in enumerate(recorded.items()):
+                # the loops in turn, each first in some episode: load that drifts favours none
+                shift = (round_index + k) % len(names)
+                episode = {}
+                for name in names[shift:] + names[:shift]:
+                    steps, seconds = runs[name](seed, actions)
                     totals[name][0] += steps
                     totals[name][1] += seconds
+                    episode[name] = steps / seconds
+                paired.append(episode["gym"] / episode["bare"])
             for name, (steps, seconds) in totals.items():
                 rates[name].append(steps / seconds)
         first = next(iter(recorded))
@@ -156,6 +166,8 @@ def main() -> None:
     print(f"per step, best of 5 over one episode: the states {costs['states']:.0f} µs, the reward "
           f"{costs['reward']:.0f} µs; World.step {world_us:.0f} µs (best round): their share "
           f"{100 * world_us / (world_us + costs['states'] + costs['reward']):.1f} %")
+    print(f"paired: gym / bare per episode, the median of {len(paired)}: {100 * statistics.median(paired):.1f} % "
+          f"(quartiles {' – '.join(f'{100 * q:.1f}' for q in statistics.quantiles(paired, n=4)[::2])} %)")
     for label, pick in (("median", statistics.median), ("best", max)):
         gym = pick(rates["gym"])
         print(f"{label}: gym / " + ", gym / ".join(f"{name} = {100 * gym / pick(rates[name]):.1f} %"

@@ -131,7 +131,9 @@ def serve(
                    "(viser, each on a port of its own) do not ask for it and listen there too. "
                    f"The studio answers to the host names {names} (add more with --allowed-host).", err=True)
     typer.echo(f"Crossroads studio on {url}  (API docs: http://{shown}:{port}/docs)")
-    uvicorn.run(create_app(settings), host=host, port=port, log_level="info")
+    # open event streams and viewer sockets never close by themselves: after 5 s they are cut, so
+    # the app's shutdown runs (its batches marked interrupted) before a service manager kills it
+    uvicorn.run(create_app(settings), host=host, port=port, log_level="info", timeout_graceful_shutdown=5)
 
 
 @net_app.command("list")

@@ -1,23 +1,58 @@
-// Batches: run one (progress over Server-Sent Events, cancel), its results and episodes, the list
-// of batches and the side-by-side comparison.
-import { $, api, esc, Json, messageOf, pct, post, secs } from "./api";
+// Batches: run one (progress over Server-Sent Events with elapsed time, rate and ETA; cancel; resume
+// one the server stopped under), its results and episodes, the list of batches and the comparison.
+import { $, api, esc, Json, messageOf, pct, post, secs, sleep } from "./api";
 import { picked, pickedChanged } from "./compare";
 import { TRAVEL_TIME, showEpisodes } from "./episodes";
 import { clearErrors, showErrors } from "./form";
 
 const FINISHED = ["done", "cancelled", "failed"];
+const ENDED = [...FINISHED, "interrupted"]; // no runner goes on with these by itself
 let following: number | null = null; // the batch whose progress the bar shows
 let stream: EventSource | null = null; // its event stream (one at a time: a new follow closes it)
 const FOLLOWED_KEY = "crossroads.followed-batch"; // sessionStorage: the batch this tab followed last
 const LIST_POLL_MS = 3000; // the batch list is read again this often while a batch is unfinished
 let listTimer: number | undefined;
 
+/** A duration for people: "45 s", "3 min 05 s", "2 h 07 min". */
+export function duration(seconds: number): string {
+  const s = Math.max(0, Math.round(seconds));
+  if (s < 60) return `${s} s`;
+  if (s < 3600) return `${Math.floor(s / 60)} min ${String(s % 60).padStart(2, "0")} s`;
+  return `${Math.floor(s / 3600)} h ${String(Math.floor((s % 3600) / 60)).padStart(2, "0")} min`;
+}
+
+/** Elapsed time, rate and ETA of a batch's progress (the API reads them from the store, so they
+ *  are the same after a reload or a restart). */
+export function timingText(p: Json): string {
+  const parts: string[] = [];
+  if (p.elapsed_s != null) parts.push(`${duration(p.elapsed_s)} elapsed`);
+  if (p.rate_per_min != null) parts.push(`${Number(p.rate_per_min).toFixed(1)} runs/min`);
+  if (p.eta_s != null) parts.push(`about ${duration(p.eta_s)} left`);
+  else if (p.status === "running" && p.done < p.total) parts.push("ETA after the first run");
+  return parts.join(" · ");
+}
+
 function progressLine(batchId: number, p: Json): string {
   if (p.status === "queued") {
     const place = p.queue_position ? ` (waiting for a free slot, ${p.queue_position === 1 ? "next" : `#${p.queue_position} in line`})` : "";
     return `batch #${batchId} queued${place}: ${p.done}/${p.total} runs`;
   }
-  return `batch #${batchId} ${p.status}: ${p.done}/${p.total} runs, ${p.passed} passed, ${p.errors} errors`;
+  const timing = timingText(p);
+  return `batch #${batchId} ${p.status}: ${p.done}/${p.total} runs, ${p.passed} passed, ${p.errors} errors${timing ? ` — ${timing}` : ""}`;
+}
+
+/** The Resume button beside the progress bar: shown for an interrupted batch. */
+function showResume(batchId: number | null): void {
+  const button = $<HTMLButtonElement>("#resume");
+  button.hidden = batchId == null;
+  button.disabled = false;
+  button.dataset.batch = batchId == null ? "" : String(batchId);
+}
+
+/** What the bar says of a batch the server stopped under. */
+function interruptedLine(batchId: number, error: string | null | undefined, p: Json | undefined): string {
+  const done = p ? `: ${p.done}/${p.total} runs recorded` : "";
+  return `batch #${batchId} interrupted${done} — ${error ?? "the server stopped while it ran"}`;
 }
 
 function showCancel(batchId: number | null): void {
@@ -63,6 +98,8 @@ export function follow(batchId: number, done: () => void): void {
   text.textContent = `batch #${batchId}: starting…`;
   showProgressWarnings([]);
   showCancel(batchId);
+  showResume(null);
+  delete text.dataset.status;
   stream?.close(); // the batch followed before (e.g. reattached after a reload) runs on unshown
   const source = new EventSource(`/api/batches/${batchId}/events`);
   stream = source;
@@ -78,17 +115,48 @@ export function follow(batchId: number, done: () => void): void {
     text.textContent = `batch #${batchId} ${e.status}`;
     text.dataset.status = e.status;
     finish(batchId, done);
+    if (e.status === "interrupted") {
+      const b = await api(`/api/batches/${batchId}`);
+      text.textContent = interruptedLine(batchId, b.error, b.progress);
+      showResume(batchId);
+    } else if (e.summary) {
+      const b = await api(`/api/batches/${batchId}`);
+      const timing = timingText({ ...b.progress, status: b.status });
+      if (timing) text.textContent += ` — ${timing}`;
+    }
     await showBatch(batchId);
     await refreshBatches();
   });
   source.onerror = () => {
-    // The stream closes after `end`; any other error: fall back to reading the batch once.
+    // The stream closes after `end`; any other error (the server stopped, the network went):
+    // look for the batch again every few seconds and follow it once the server answers.
     if (source.readyState === EventSource.CLOSED) return;
     source.close();
-    text.textContent = `batch #${batchId}: lost the progress stream`;
+    text.textContent = `batch #${batchId}: lost the progress stream; trying again…`;
     finish(batchId, done);
-    void showBatch(batchId);
+    void reconnect(batchId);
   };
+}
+
+const RECONNECT_MS = 2000;
+
+/** After the stream was lost: once the API answers again, follow the batch (still running, or
+ *  resumed by a restarted server) or show how it ended (e.g. interrupted, with Resume). */
+async function reconnect(batchId: number): Promise<void> {
+  while (following === batchId) {
+    await sleep(RECONNECT_MS);
+    if (following !== batchId) return;
+    let b: Json;
+    try {
+      b = await api(`/api/batches/${batchId}`);
+    } catch {
+      continue; // not back yet
+    }
+    if (following !== batchId) return;
+    const list = await refreshBatches().catch(() => [b]);
+    await reattach(list.some((x: Json) => x.id === batchId) ? list : [b, ...list]);
+    return;
+  }
 }
 
 /** After a reload: follow again the batch this tab followed (or else the newest unfinished one),
@@ -97,10 +165,10 @@ export async function reattach(list: Json[], done: () => void = () => undefined)
   const stored = Number(sessionStorage.getItem(FOLLOWED_KEY));
   let batch: Json | undefined = list.find((b) => b.id === stored);
   if (!batch && stored > 0) batch = await api(`/api/batches/${stored}`).catch(() => undefined);
-  const unfinished = list.find((b) => !FINISHED.includes(b.status));
-  if (!batch || (FINISHED.includes(batch.status) && unfinished)) batch = unfinished;
+  const unfinished = list.find((b) => !ENDED.includes(b.status));
+  if (!batch || (ENDED.includes(batch.status) && unfinished)) batch = unfinished;
   if (!batch) return;
-  if (!FINISHED.includes(batch.status)) {
+  if (!ENDED.includes(batch.status)) {
     follow(batch.id, done);
     return;
   }
@@ -108,10 +176,28 @@ export async function reattach(list: Json[], done: () => void = () => undefined)
   const text = $("#progress-text");
   bar.hidden = false;
   bar.value = batch.progress.total ? batch.progress.done / batch.progress.total : 1;
-  text.textContent = `batch #${batch.id} ${batch.status}`;
+  const timing = timingText({ ...batch.progress, status: batch.status });
+  text.textContent = batch.status === "interrupted"
+    ? interruptedLine(batch.id, batch.error, batch.progress)
+    : `batch #${batch.id} ${batch.status}${timing ? ` — ${timing}` : ""}`;
   text.dataset.status = batch.status;
   showCancel(null);
+  showResume(batch.status === "interrupted" ? batch.id : null);
   await showBatch(batch.id);
+}
+
+/** Go on with an interrupted batch (the runs recorded are kept) and follow it. */
+export async function resumeBatch(batchId: number): Promise<void> {
+  const button = $<HTMLButtonElement>("#resume");
+  button.disabled = true;
+  try {
+    await post(`/api/batches/${batchId}/resume`);
+    follow(batchId, () => undefined);
+  } catch (e) {
+    $("#progress-text").textContent = `batch #${batchId}: cannot resume: ${messageOf(e)}`;
+    button.disabled = false;
+  }
+  await refreshBatches();
 }
 
 function finish(batchId: number, done: () => void): void {
@@ -185,12 +271,13 @@ export async function showBatch(batchId: number): Promise<void> {
 
 function batchRow(b: Json): string {
   const status = b.status === "queued" && b.queue_position ? `queued (#${b.queue_position})` : b.status;
-  const cancel = FINISHED.includes(b.status) ? "" : ` <button type="button" data-cancel="${b.id}">Cancel</button>`;
+  const resume = b.status === "interrupted" ? ` <button type="button" data-resume="${b.id}" title="${esc(b.error ?? "")}">Resume</button>` : "";
+  const cancel = FINISHED.includes(b.status) ? "" : `${resume} <button type="button" data-cancel="${b.id}">Cancel</button>`;
   const warnings: string[] = b.warnings ?? [];
   const warned = warnings.length ? ` <span class="hint warning" title="${esc(warnings.join("\n"))}">(warning)</span>` : "";
   const pick = `<input type="checkbox" class="pick" data-pick="${b.id}" aria-label="pick batch #${b.id}"${picked.has(b.id) ? " checked" : ""} />`;
   return `<tr data-id="${b.id}"><td>${pick}</td><td>${b.id}</td><td>${esc(b.scenario)}${warned}</td><td>${esc(b.policy)}</td><td class="status">${esc(status)}</td>
-    <td>${b.progress.done}/${b.progress.total}</td><td><button type="button" data-batch="${b.id}">Show</button>${cancel}</td></tr>`;
+    <td>${b.progress.done}/${b.progress.total}${b.status === "running" && b.progress.eta_s != null ? ` <span class="hint">(~${duration(b.progress.eta_s)} left)</span>` : ""}</td><td><button type="button" data-batch="${b.id}">Show</button>${cancel}</td></tr>`;
 }
 
 function compareCell(full: Json[], sid: number, pol: string): string {
@@ -226,7 +313,7 @@ async function refreshCompare(list: Json[]): Promise<void> {
 export async function refreshBatches(): Promise<Json[]> {
   window.clearTimeout(listTimer);
   const list: Json[] = await api("/api/batches?limit=50");
-  if (list.some((b) => !FINISHED.includes(b.status))) {
+  if (list.some((b) => !ENDED.includes(b.status))) {
     listTimer = window.setTimeout(() => void refreshBatches().catch(() => undefined), LIST_POLL_MS);
   }
   $("#batches").innerHTML = list.length

@@ -1,7 +1,7 @@
 // Crossroads studio: the scenario editor, batch runner, live runs and results browser (plain TypeScript).
 import "./style.css";
 import { $, api, esc, Json, post } from "./api";
-import { cancelBatch, reattach, refreshBatches, runBatch, showBatch } from "./batches";
+import { cancelBatch, reattach, refreshBatches, resumeBatch, runBatch, showBatch } from "./batches";
 import { applyDraft, Draft, loadDraft, saveDraft, specToDraft } from "./draft";
 import { clearErrors, field, form, scenarioBody, showErrors } from "./form";
 import {
@@ -167,6 +167,7 @@ function wire(): void {
     if ((ev.target as HTMLElement).id === "save-as-new" && editing) setEditing({ ...editing, id: null });
   });
   $("#cancel").addEventListener("click", () => void cancelBatch(Number($("#cancel").dataset.batch)));
+  $("#resume").addEventListener("click", () => void resumeBatch(Number($("#resume").dataset.batch)));
   $("#live").addEventListener("click", () => void startLive(scenarioId, policy()));
   $("#live-stop").addEventListener("click", () => void stopLive());
   $("#refresh").addEventListener("click", () => void refreshBatches());
@@ -174,6 +175,7 @@ function wire(): void {
     const data = (ev.target as HTMLElement).dataset;
     if (data.batch) void showBatch(Number(data.batch)).then(() => loadBatchScenario(Number(data.batch)));
     if (data.cancel) void cancelBatch(Number(data.cancel));
+    if (data.resume) void resumeBatch(Number(data.resume));
   });
   $("#batches").addEventListener("change", (ev) => {
     const box = ev.target as HTMLInputElement;

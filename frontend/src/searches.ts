@@ -2,8 +2,8 @@
 // follow it (failures so far, best objective), and browse the failures it kept (parameters,
 // distance from nominal, 3D playback, the scenario file, "save as regression scenario").
 import { $, api, esc, Json, messageOf, post, sleep } from "./api";
+import { duration } from "./batches";
 
-const FINISHED = ["done", "cancelled", "failed"];
 let current: number | null = null; // the search the panel follows
 
 /** The parameters the panel offers, each with the range the form starts with. */
@@ -51,17 +51,26 @@ function status(text: string, error = false): void {
   line.classList.toggle("error", error);
 }
 
+/** Elapsed time since the search (re)started, its rate and the ETA of its search phase. */
+function searchTiming(p: Json): string {
+  const parts: string[] = [];
+  if (p.elapsed_s != null) parts.push(`${duration(p.elapsed_s)} elapsed`);
+  if (p.rate_per_min != null) parts.push(`${Number(p.rate_per_min).toFixed(1)} episodes/min`);
+  if (p.eta_s != null) parts.push(`search phase: about ${duration(p.eta_s)} left`);
+  return parts.length ? ` — ${parts.join(" · ")}` : "";
+}
+
 function progressText(s: Json): string {
   const p = s.progress;
   const best = s.best_objective == null ? "–" : Number(s.best_objective).toFixed(3);
   if (p) {
     const shrink = p.phase === "shrink" ? `, shrinking ${p.failures}/${p.to_shrink} (${p.shrink_episodes} episodes)` : "";
     return `search #${s.search_id} ${p.phase}: ${p.searched}/${p.budget} episodes, ${p.failing} failing, `
-      + `best objective ${p.best_objective == null ? "–" : Number(p.best_objective).toFixed(3)}${shrink}`;
+      + `best objective ${p.best_objective == null ? "–" : Number(p.best_objective).toFixed(3)}${shrink}${searchTiming(p)}`;
   }
-  return `search #${s.search_id} ${s.status}: ${s.searched}/${s.budget} episodes, ${s.failing} failing, `
+  return `search #${s.search_id} ${s.state ?? s.status}: ${s.searched}/${s.budget} episodes, ${s.failing} failing, `
     + `${s.failures} failures kept (${s.distinct_failures} distinct), best objective ${best}`
-    + (s.error ? ` — ${s.error}` : "");
+    + (s.error ? ` — ${s.error}` : s.state === "interrupted" ? " — the server stopped while it ran; resume it" : "");
 }
 
 async function showFailures(searchId: number): Promise<void> {
@@ -83,6 +92,7 @@ async function showFailures(searchId: number): Promise<void> {
 async function follow(searchId: number): Promise<void> {
   current = searchId;
   $<HTMLButtonElement>("#search-cancel").hidden = false;
+  $<HTMLButtonElement>("#search-resume").hidden = true;
   let shown = -1;
   while (current === searchId) {
     let s: Json;
@@ -93,16 +103,36 @@ async function follow(searchId: number): Promise<void> {
       break;
     }
     status(progressText(s));
+    $("#search-status").dataset.state = s.state ?? s.status;
     const kept = s.progress ? s.progress.failures : s.failures;
     if (kept !== shown) {
       shown = kept;
       await showFailures(searchId);
     }
-    if (FINISHED.includes(s.status) && !s.progress) break;
+    if (!s.progress && s.state !== "running") {
+      // ended, or stopped under by the server: a cancelled or interrupted one can go on
+      const resume = $<HTMLButtonElement>("#search-resume");
+      resume.hidden = !(s.state === "interrupted" || s.state === "cancelled");
+      resume.disabled = false;
+      resume.dataset.search = String(searchId);
+      break;
+    }
     await sleep(1000);
   }
   $<HTMLButtonElement>("#search-cancel").hidden = true;
   $<HTMLButtonElement>("#search-start").disabled = false;
+}
+
+async function resume(searchId: number): Promise<void> {
+  const button = $<HTMLButtonElement>("#search-resume");
+  button.disabled = true;
+  try {
+    await post(`/api/searches/${searchId}/resume`);
+    void follow(searchId);
+  } catch (e) {
+    status(messageOf(e), true);
+    button.disabled = false;
+  }
 }
 
 async function start(scenarioId: number | null, policy: string): Promise<void> {
@@ -129,6 +159,7 @@ async function start(scenarioId: number | null, policy: string): Promise<void> {
 export function initSearches(scenarioId: () => number | null, policy: () => string): void {
   $("#search-parameters").innerHTML = `<tr><th>Parameter</th><th>Low</th><th>High</th></tr>${parameterRows()}`;
   $("#search-start").addEventListener("click", () => void start(scenarioId(), policy()));
+  $("#search-resume").addEventListener("click", () => void resume(Number($("#search-resume").dataset.search)));
   $("#search-cancel").addEventListener("click", async () => {
     if (current != null) await post(`/api/searches/${current}/cancel`).catch((e) => status(messageOf(e), true));
   });

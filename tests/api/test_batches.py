@@ -95,8 +95,11 @@ def test_tiny_batch_end_to_end(client: TestClient, tiny_batch: int) -> None:
     body = client.get(f"/api/batches/{tiny_batch}").json()
     assert body["status"] == "done" and body["policy"] == "rule" and body["scenario"] == "api-tiny-left"
     assert body["warnings"] == []  # the catalogue's internal lanes follow the candidate paths
+    timing = {k: body["progress"].pop(k) for k in ("elapsed_s", "since_start", "rate_per_min", "eta_s")}
     assert body["progress"] == {"done": 2, "total": 2, "passed": body["summary"]["passed"],
                                 "errors": 0, "fraction": 1.0}
+    assert timing["since_start"] == 2 and timing["elapsed_s"] >= 0 and timing["eta_s"] is None  # ended
+    assert timing["rate_per_min"] is None or timing["rate_per_min"] > 0  # None: both within a second
     summary = body["summary"]
     assert sum(summary["outcome_counts"].values()) == 2 and summary["errors"] == 0
     assert 0.0 <= summary["wilson_low"] <= summary["wilson_high"] <= 1.0

@@ -1,7 +1,7 @@
 """The batch queue of the API: at most ``max_concurrent_batches`` run at once, the others wait in
-order and start as slots free; a waiting batch cancels at once; a shutdown leaves the stopped
-batches ``queued``; and at startup the API resumes the batches a previous process left queued or
-running, without running or counting any episode twice."""
+order and start as slots free; a waiting batch cancels at once; a shutdown marks the stopped
+batches ``interrupted``; and at startup the API resumes the batches a previous process left queued,
+running or interrupted, without running or counting any episode twice."""
 
 from __future__ import annotations
 
@@ -118,7 +118,7 @@ def test_the_cap_queues_in_order_and_slots_free_up(store: Store, tmp_path: Path)
     assert _status(store, c) == "done"
 
 
-def test_shutdown_leaves_stopped_batches_queued(store: Store, tmp_path: Path) -> None:
+def test_shutdown_marks_stopped_batches_interrupted(store: Store, tmp_path: Path) -> None:
     runners: dict[int, FakeRunner] = {}
     jobs = JobRegistry(store, data_dir=tmp_path, max_running=1,
                        runner_factory=lambda b, _w: runners.setdefault(b, FakeRunner(store, b)))
@@ -128,8 +128,12 @@ def test_shutdown_leaves_stopped_batches_queued(store: Store, tmp_path: Path) ->
     _until(lambda: a in runners and runners[a].started.is_set())
     jobs.shutdown(timeout_s=WAIT_S)
     assert runners[a].cancelled_at_end, "the shutdown stopped the running batch"
-    assert (_status(store, a), _status(store, b)) == ("queued", "queued"), \
-        "both go on at the next start"
+    assert (_status(store, a), _status(store, b)) == ("interrupted", "interrupted"), \
+        "both said interrupted (the next start goes on with them), neither running nor queued forever"
+    with store.session() as session:
+        stopped = crud.get_batch(session=session, batch_id=a)
+        assert stopped is not None and stopped.error is not None and "server stopped" in stopped.error
+        assert stopped.finished_at is None
     jobs.submit(b)  # a closing registry starts nothing
     assert b not in runners
 

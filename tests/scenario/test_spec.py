@@ -252,7 +252,7 @@ def test_content_hash_is_pinned() -> None:
     # changes (on purpose) when a default changes: the defaults are part of what a file means.
     spec = validate_scenario(MINIMAL)
     assert content_hash(spec) == (
-        "459f9e41ade25b2fd7f43e1acc32af338e818f28613afb5a18cbb67c22533dc5"), content_hash(spec)
+        "3ab8914943e1abf125c431a9fba9c127e4521e607863d64188981351bc4ae950"), content_hash(spec)
 
 
 def test_run_seeds_are_deterministic_and_independent_of_the_count() -> None:

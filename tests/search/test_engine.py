@@ -140,3 +140,70 @@ def test_a_bad_space_or_policy_fails_before_anything_runs(tmp_path: Path) -> Non
             assert records.list_searches(session=session) == []
     finally:
         store.close()
+
+
+def write_mixed_space(tmp_path: Path) -> Path:
+    """Short episodes; the light at entry is the ego's green (phase 0: a pass or a timeout) or the
+    cross street's (phase 4, the ego 3–6 m before the line at 9–10 m/s: a red-light run)."""
+    path = write_space(tmp_path)
+    data = yaml.safe_load(path.read_text())
+    data["name"] = "mixed"
+    data["parameters"][0] = {"path": "lights.phase", "choices": [0, 4]}
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+# The fields of a trial's result that an episode's row in the results store keeps too.
+EPISODE_FIELDS = ("outcome", "steps", "time_s", "travel_time_s", "min_distance_m", "min_gap_m", "detail",
+                  "collided_with")
+
+
+def test_trials_on_the_pool_are_those_of_batch_workers_and_replay_with_crossroads_evaluate(tmp_path: Path) -> None:
+    """The same search on the search's long-lived workers (2 at once) and with a fresh batch worker
+    per trial (1 at once): the same points, seeds and results, trial for trial. Then `crossroads
+    evaluate` on every stored failure gives its trial's episode again, field for field."""
+    from crossroads.search.engine import create_search_for
+    from crossroads.search.space import load_space
+    from crossroads.store import crud
+
+    space = load_space(write_mixed_space(tmp_path))
+    store = open_store(f"sqlite:///{tmp_path / 'search.db'}")
+    try:
+        searched: dict[str, list[tuple[Any, ...]]] = {}
+        ids: dict[str, int] = {}
+        for executor, workers in (("pool", 2), ("batch", 1)):
+            search_id = create_search_for(store, space=space, policy="rule", budget=6, seed=11, generation=2,
+                                          shrink_steps=0, failures_dir=tmp_path / f"failures-{executor}")
+            summary = SearchRunner(store, search_id, workers=workers, data_dir=tmp_path / "data",
+                                   executor=executor).run()
+            assert summary["status"] == "done" and summary["searched"] == 6
+            ids[executor] = search_id
+            with store.session() as session:
+                rows = records.trials(session=session, search_id=search_id, kind="search")
+                searched[executor] = [(t.number, t.params, t.seed, t.result) for t in rows]
+                executors = {crud.get_batch(session=session, batch_id=t.batch_id).executor for t in rows}
+            assert executors == {"local (search pool)" if executor == "pool" else "local"}
+        assert searched["pool"] == searched["batch"]
+        outcomes = {result["outcome"] for *_, result in searched["pool"]}
+        assert "red_light" in outcomes and outcomes - {"red_light"}, outcomes  # failures and not
+        by_name = {f"mixed-s{ids['pool']}-t{number}": result for number, _, _, result in searched["pool"]}
+    finally:
+        store.close()
+
+    files = sorted((tmp_path / "failures-pool").glob("*.yaml"))
+    assert len(files) == sum(result["outcome"] == "red_light" for result in by_name.values())
+    replay_db = f"sqlite:///{tmp_path / 'replay.db'}"
+    replay = crossroads("evaluate", str(tmp_path / "failures-pool"), "--policy", "rule", "--db", replay_db,
+                        "--workers", "2", "--json", cwd=tmp_path)
+    assert replay.returncode == 0, replay.stderr
+    replays = open_store(replay_db)
+    try:
+        with replays.session() as session:
+            batches = crud.list_batches(session=session, limit=100)
+            assert len(batches) == len(files)
+            for batch in batches:
+                (episode,) = crud.batch_results(session=session, batch_id=batch.id)
+                trial = by_name[batch.scenario.name]
+                assert {k: getattr(episode, k) for k in EPISODE_FIELDS} == {k: trial[k] for k in EPISODE_FIELDS}
+    finally:
+        replays.close()

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from crossroads.intersections import catalogue
-from crossroads.sim.courtesy import PedestrianCourtesy, walking_into
+from crossroads.sim.courtesy import Courtesy, Movers, walking_into
 from crossroads.sim.sumo import SumoSession
 from crossroads.sim.traffic import VTYPES_XML
 
@@ -44,25 +44,29 @@ class _Recorder:
         self.calls.append(("release", pid))
 
 
-def _update(rule: PedestrianCourtesy, session: _Recorder, y: float, ego_speed: float) -> None:
-    rule.update(session, np.array(["p"]), np.array([0.0]), np.array([y]), np.array([-np.pi / 2]),  # type: ignore[arg-type]
-                np.array([1.3]), (0.0, 0.0, 0.0, ego_speed, 4.8, 2.0))
+def _one(pid: str, y: float, speed: float) -> Movers:
+    return Movers(np.array([pid]), np.array([0.0]), np.array([y]), np.array([-np.pi / 2]), np.array([speed]))
+
+
+def _update(rule: Courtesy, session: _Recorder, ego_speed: float) -> None:
+    rule.update(session, _one("p", 2.0, 1.3), (0.0, 0.0, 0.0, ego_speed, 4.8, 2.0))  # type: ignore[arg-type]
 
 
 def test_held_while_the_ego_stands_and_released_when_it_drives() -> None:
-    rule, session = PedestrianCourtesy(), _Recorder()
-    _update(rule, session, 2.0, 0.0)
-    _update(rule, session, 2.0, 0.0)  # still held: no second call
-    assert session.calls == [("hold", "p")]
+    rule, session = Courtesy(), _Recorder()
+    who = "p"
+    _update(rule, session, 0.0)
+    _update(rule, session, 0.0)  # still held: no second call
+    assert session.calls == [("hold", who)]
     assert rule.may_act(5.0)  # someone is held: the rule must look even at speed
-    _update(rule, session, 2.0, 5.0)
-    assert session.calls == [("hold", "p"), ("release", "p")] and not rule.held
-    assert not rule.may_act(5.0)
+    _update(rule, session, 5.0)
+    assert session.calls == [("hold", who), ("release", who)]
+    assert not rule.held_pedestrians and not rule.may_act(5.0)
 
 
 def test_off_means_off() -> None:
-    rule, session = PedestrianCourtesy(enabled=False), _Recorder()
-    _update(rule, session, 2.0, 0.0)
+    rule, session = Courtesy(enabled=False), _Recorder()
+    _update(rule, session, 0.0)
     assert session.calls == [] and not rule.may_act(0.0)
 
 

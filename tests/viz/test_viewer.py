@@ -17,7 +17,7 @@ viser = pytest.importorskip("viser")
 
 from crossroads.evaluation.episode import run_episode  # noqa: E402
 from crossroads.scenario.spec import load_scenario, to_world_config  # noqa: E402
-from crossroads.evaluation.trace import Trace, TraceRecorder  # noqa: E402
+from crossroads.evaluation.trace import Trace  # noqa: E402
 from crossroads.idc.rule_based import RuleBasedController  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 from crossroads.viz.playback import (  # noqa: E402
@@ -27,23 +27,6 @@ from crossroads.viz.viewer import (  # noqa: E402
 from support import REPO_ROOT  # noqa: E402
 
 SCENARIO = REPO_ROOT / "scenarios" / "nominal" / "a_single_lane-left.yaml"
-
-
-@pytest.fixture(scope="module")
-def trace_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    spec = load_scenario(SCENARIO)
-    config = replace(to_world_config(spec), warmup_s=15.0, timeout_s=6.0)
-    recorder = TraceRecorder()
-    with World(config) as world:
-        run_episode(world, RuleBasedController(), seed=3, recorder=recorder, scenario_name=spec.name)
-    path = tmp_path_factory.mktemp("traces") / "a.trace.npz"
-    recorder.trace().save(path)
-    return path
-
-
-@pytest.fixture(scope="module")
-def trace(trace_file: Path) -> Trace:
-    return Trace.load(trace_file)
 
 
 @pytest.fixture(scope="module")

@@ -11,8 +11,14 @@ keeps its stored status ``queued``, and starts when a running one ends.
 
 A batch that cannot even start (its network does not build, its policy does not load) is marked
 ``failed`` with the reason, so no batch is left ``queued`` forever by this process. On shutdown
-the running batches are stopped and put back to ``queued``: :meth:`JobRegistry.resume_unfinished`
-at the next start goes on with them (the runner skips every run already recorded).
+the running and the waiting batches are stopped and marked ``interrupted``: the next start goes on
+with them (:meth:`JobRegistry.resume_unfinished`, the runner skips every run already recorded), or,
+with resuming turned off, shows them interrupted until a user resumes one (:meth:`JobRegistry.resume`).
+
+A process that is killed cannot say so: every few seconds (``heartbeat_s``) the registry stamps
+``batches.heartbeat_at`` of its batches, and marks ``interrupted`` any unfinished batch whose stamp
+is older than ``stale_after_s`` (its process stopped); so no batch is shown running forever.
+Batches without a stamp (run by ``crossroads evaluate``) are never judged so.
 
 A cancel is recorded in the store before anything else (``batches.cancel_requested_at``, written
 by the route): a batch asked to cancel never starts, is never put back in the queue and is never
@@ -27,15 +33,24 @@ import threading
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from datetime import timedelta
 from pathlib import Path
 from typing import Literal, Protocol
+
+from sqlalchemy import select, update
 
 from crossroads.evaluation.batch import BatchResult, BatchRunner, Progress
 from crossroads.evaluation.executors import Executor, ProcessExecutor, RayExecutor
 from crossroads.store import Store, crud
 from crossroads.store.crud import FINISHED_STATUSES
+from crossroads.store.tables import Batch, utcnow
 
 log = logging.getLogger(__name__)
+
+HEARTBEAT_S = 5.0  # [s] how often the registry says its batches are still in hand
+STALE_AFTER_S = 30.0  # [s] an unfinished batch not stamped for this long: its process stopped
+INTERRUPTED_BY_SHUTDOWN = "interrupted: the server stopped while the batch ran; resume it"
+INTERRUPTED_BY_LOSS = "interrupted: the server running it stopped (no sign of it since {when}); resume it"
 
 CancelOutcome = Literal["cancelling", "dequeued"]
 
@@ -80,7 +95,8 @@ class JobRegistry:
 
     def __init__(self, store: Store, *, data_dir: str | Path, ray_address: str | None = None,
                  max_running: int = 2, runner_factory: RunnerFactory | None = None,
-                 episode_wall_limit_s: float | None = None) -> None:
+                 episode_wall_limit_s: float | None = None, heartbeat_s: float = HEARTBEAT_S,
+                 stale_after_s: float = STALE_AFTER_S) -> None:
         if max_running < 1:
             raise ValueError(f"max_running must be >= 1, got {max_running}")
         if episode_wall_limit_s is not None and not episode_wall_limit_s > 0:
@@ -96,6 +112,11 @@ class JobRegistry:
         self._queue: deque[int] = deque()
         self._closing = False
         self._lock = threading.Lock()
+        if not 0 < heartbeat_s < stale_after_s:
+            raise ValueError(f"need 0 < heartbeat_s < stale_after_s, got {heartbeat_s} and {stale_after_s}")
+        self.heartbeat_s, self.stale_after_s = heartbeat_s, stale_after_s
+        self._beats = threading.Event()  # set: the heartbeat thread stops
+        self._beat_thread: threading.Thread | None = None
 
     def _batch_runner(self, batch_id: int, workers: int | None) -> Runner:
         executor: Executor
@@ -122,7 +143,17 @@ class JobRegistry:
                 self._start(job)
             else:
                 self._queue.append(batch_id)
-            return job
+        self._stamp([batch_id])  # in hand from now on (a waiting batch too)
+        return job
+
+    def resume(self, batch_id: int, *, workers: int | None = None) -> Job:
+        """Go on with an ``interrupted`` batch (a user's Resume): queued again, then run; the
+        runs already recorded are skipped. The caller checks the status."""
+        with self.store.session() as session:
+            session.execute(update(Batch).where(Batch.id == batch_id, Batch.status == "interrupted")
+                            .values(status="queued", error=None))
+            session.commit()
+        return self.submit(batch_id, workers=workers)
 
     def _start(self, job: Job) -> None:
         """Start ``job``'s thread (the lock is held)."""
@@ -177,21 +208,24 @@ class JobRegistry:
             log.exception("cannot mark batch %s failed", batch_id)
 
     def resume_unfinished(self) -> list[int]:
-        """Submit every stored batch still ``queued`` or ``running`` (left by a process that
-        stopped), oldest first; the runner skips the runs already recorded, so none is run or
+        """Submit every stored batch still ``queued``, ``running`` or ``interrupted`` (left by a
+        process that stopped), oldest first; the runner skips the runs already recorded, so none is run or
         counted twice. A batch a user asked to cancel is marked ``cancelled`` instead. Returns the
         ids of the batches submitted."""
         with self.store.session() as session:
             ended = crud.end_requested_cancels(session=session)
-            rows = [(b.id, b.workers) for b in crud.unfinished_batches(session=session)]
+            rows = [(b.id, b.workers, b.status) for b in crud.unfinished_batches(session=session)]
         if ended:
             log.info("cancelled %d batch(es) asked to cancel before the restart: %s", len(ended),
                      ", ".join(map(str, ended)))
-        for batch_id, workers in rows:
-            self.submit(batch_id, workers=workers)
+        for batch_id, workers, status in rows:
+            if status == "interrupted":
+                self.resume(batch_id, workers=workers)
+            else:
+                self.submit(batch_id, workers=workers)
         if rows:
             log.info("resuming %d unfinished batch(es): %s", len(rows), ", ".join(str(r[0]) for r in rows))
-        return [batch_id for batch_id, _ in rows]
+        return [row[0] for row in rows]
 
     # --- reading ---------------------------------------------------------------------------------
 
@@ -243,26 +277,89 @@ class JobRegistry:
 
     def shutdown(self, timeout_s: float = 10.0) -> None:
         """Stop every running job and wait (bounded) for their threads. Batches stopped this
-        way, and the queued ones, are left ``queued`` in the store for the next start."""
+        way, and the waiting ones, are marked ``interrupted`` in the store: the next start
+        resumes them (or a user does)."""
+        self._beats.set()
         with self._lock:
             self._closing = True
+            waiting = list(self._queue)
             self._queue.clear()
             jobs = [self._jobs[b] for b in self._active]
         for job in jobs:
             assert job.runner is not None
             job.runner.cancel()
+        for batch_id in waiting:
+            self._interrupt(batch_id, ("queued",))
         for job in jobs:
             assert job.thread is not None
             job.thread.join(timeout_s)
             if not job.alive and not job.cancel_asked and job.error is None:
-                self._requeue(job.batch_id)
+                # the runner recorded ``cancelled`` (a stop that is not a user's cancel)
+                self._interrupt(job.batch_id, ("cancelled", "queued", "running"))
+        if self._beat_thread is not None:
+            self._beat_thread.join(timeout_s)
 
-    def _requeue(self, batch_id: int) -> None:
-        """A batch the shutdown stopped (the runner recorded ``cancelled``): back to ``queued``."""
+    def _interrupt(self, batch_id: int, found: tuple[str, ...]) -> None:
+        """Mark a batch the shutdown stopped ``interrupted`` (when its status is one of ``found``
+        and no user asked to cancel it)."""
         try:
             with self.store.session() as session:
                 batch = crud.get_batch(session=session, batch_id=batch_id)
-                if batch is not None and batch.status == "cancelled" and batch.cancel_requested_at is None:
-                    crud.set_batch_status(session=session, batch_id=batch_id, status="queued")
+                if batch is not None and batch.status in found and batch.cancel_requested_at is None:
+                    batch.status, batch.error, batch.finished_at = "interrupted", INTERRUPTED_BY_SHUTDOWN, None
+                    session.commit()
         except Exception:  # noqa: BLE001 - the store went first; the batch stays as it is
-            log.exception("cannot put batch %s back in the queue", batch_id)
+            log.exception("cannot mark batch %s interrupted", batch_id)
+
+    # --- the heartbeat -----------------------------------------------------------------------------
+
+    def start_heartbeat(self) -> None:
+        """Stamp this registry's batches every ``heartbeat_s`` and mark ``interrupted`` those
+        abandoned by a stopped process, in a daemon thread (until :meth:`shutdown`). Marks the
+        abandoned ones once at once too."""
+        if self._beat_thread is not None:
+            return
+        self.mark_abandoned()
+        self._beat_thread = threading.Thread(target=self._beat_loop, daemon=True, name="crossroads-api-heartbeat")
+        self._beat_thread.start()
+
+    def _beat_loop(self) -> None:
+        while not self._beats.wait(self.heartbeat_s):
+            try:
+                self._stamp(self.in_hand())
+                self.mark_abandoned()
+            except Exception:  # noqa: BLE001 - a store hiccup: the next beat tries again
+                log.exception("batch heartbeat failed")
+
+    def in_hand(self) -> list[int]:
+        """The batches this registry runs or queues."""
+        with self._lock:
+            return sorted(self._active | set(self._queue))
+
+    def _stamp(self, batch_ids: list[int]) -> None:
+        if not batch_ids:
+            return
+        with self.store.session() as session:
+            session.execute(update(Batch).where(Batch.id.in_(batch_ids), Batch.status.in_(("queued", "running")))
+                            .values(heartbeat_at=utcnow()))
+            session.commit()
+
+    def mark_abandoned(self) -> list[int]:
+        """Mark ``interrupted`` every batch still ``queued`` or ``running`` whose heartbeat is
+        older than ``stale_after_s`` and that this registry does not hold (its process stopped
+        without saying so, e.g. killed); their ids. A batch asked to cancel is left to
+        :meth:`resume_unfinished` (it ends ``cancelled``)."""
+        mine = set(self.in_hand())
+        cutoff = utcnow() - timedelta(seconds=self.stale_after_s)
+        with self.store.session() as session:
+            rows = [b for b in session.scalars(select(Batch).where(
+                Batch.status.in_(("queued", "running")), Batch.cancel_requested_at.is_(None),
+                Batch.heartbeat_at.is_not(None), Batch.heartbeat_at < cutoff)) if b.id not in mine]
+            for batch in rows:
+                when = batch.heartbeat_at.strftime("%Y-%m-%d %H:%M:%S") if batch.heartbeat_at else "?"
+                batch.status, batch.error = "interrupted", INTERRUPTED_BY_LOSS.format(when=f"{when} UTC")
+            session.commit()
+        if rows:
+            log.warning("batch(es) abandoned by a stopped server marked interrupted: %s",
+                        ", ".join(str(b.id) for b in rows))
+        return [b.id for b in rows]

@@ -216,9 +216,11 @@ class LiveRuns:
         """The child's world is built: draw the intersection, wait for a tab, then go."""
         from crossroads.intersections.resolve import open_junction
         from crossroads.viz.viewer import Viewer
+        from crossroads.viz.views import ViewControls
 
         junction = open_junction(ready["net"], ready["junction"])
         run.viewer = Viewer(run.server, junction, ready["candidates"])
+        ViewControls(run.server.gui, run.viewer)  # camera (follow, top-down), layers, legend
         self._set(run, "waiting")
         deadline = time.monotonic() + self.viewer_wait_s
         while (not run.server.get_clients() and time.monotonic() < deadline

@@ -2,8 +2,9 @@
 
 The lifespan opens (and migrates) the results store named by the settings, starts the batch
 job registry (at most ``max_concurrent_batches`` running, the rest queued) and resumes the
-batches a previous process left queued or running (``resume_batches``); on shutdown it stops the
-live runs and the running batches (left ``queued`` for the next start) and closes the store.
+batches a previous process left queued, running or interrupted (``resume_batches``; otherwise
+they show ``interrupted`` until a user resumes one); on shutdown it stops the live runs and the
+running batches (marked ``interrupted`` for the next start) and closes the store.
 
 In front of every route: :class:`~crossroads.api.guard.RequestGuard` (the Host, the access token,
 the Origin of state-changing requests) and :class:`~crossroads.api.body_limit.BodyLimit` (the
@@ -57,6 +58,7 @@ async def lifespan(app: FastAPI) -> AsyncIterator[None]:
     app.state.store, app.state.jobs, app.state.live = store, jobs, live_runs
     if settings.resume_batches:
         jobs.resume_unfinished()  # returns at once: the batches run in the background
+    jobs.start_heartbeat()  # batches a stopped process left behind are marked interrupted
     try:
         yield
     finally:

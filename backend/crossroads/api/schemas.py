@@ -100,6 +100,13 @@ class BatchProgress(BaseModel):
     passed: int
     errors: int
     fraction: float
+    elapsed_s: float | None = Field(None, description="[s] wall-clock since the batch last started (a "
+                                    "resumed batch: since it was resumed), to its end once ended, to "
+                                    "its last sign of life when interrupted; null before it starts")
+    since_start: int = Field(0, description="runs recorded since it last started (the rate's count)")
+    rate_per_min: float | None = Field(None, description="[runs/min] since it last started; null "
+                                       "before its first run is recorded")
+    eta_s: float | None = Field(None, description="[s] the runs left at that rate; only while running")
 
 
 class BatchSummary(BaseModel):
@@ -125,7 +132,9 @@ class BatchPublic(BaseModel):
     scenario_id: int
     scenario: str
     policy: str
-    status: Literal["queued", "running", "done", "cancelled", "failed"]
+    status: Literal["queued", "running", "done", "cancelled", "failed", "interrupted"] = Field(
+        description="interrupted: the server stopped while the batch ran or waited (POST "
+        "/batches/{id}/resume goes on with it; a restart with resume_batches does so itself)")
     runs: int
     traces: str
     workers: int | None

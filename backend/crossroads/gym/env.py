@@ -26,6 +26,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any, SupportsFloat
 
@@ -138,7 +139,7 @@ class CrossroadsEnv(gym.Env[Any, np.ndarray]):
         if self._done or self._view is None:
             raise RuntimeError("the episode has ended (or not started): call reset() first")
         action = np.asarray(action, dtype=np.float64).reshape(-1)
-        if action.shape != (2,) or not np.isfinite(action).all():
+        if len(action) != 2 or not all(map(math.isfinite, action.tolist())):
             raise ValueError(f"action must be 2 finite numbers [Δδ rad/s, Δa m/s³], got {action!r}")
         before = self._view
         try:

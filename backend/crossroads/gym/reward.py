@@ -22,7 +22,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from crossroads.constants import JERK_MAX, PENALTY_RHO, STATE_DIM, STEER_RATE_MAX, UTILITY_WEIGHTS
+from crossroads.constants import (
+    JERK_MAX,
+    OTHER_STATE_DIM,
+    PENALTY_RHO,
+    STATE_DIM,
+    STEER_RATE_MAX,
+    UTILITY_WEIGHTS,
+)
 from crossroads.idc.constraints import (
     EGO_CIRCLE_OFFSET_M,
     EGO_RADIUS_M,
@@ -42,14 +49,13 @@ from crossroads.idc.state import (
     DY,
     N_OTHERS,
     O_L,
-    O_PX,
-    O_PY,
     O_W,
     OMEGA,
+    OTHERS,
     PHI,
     PX,
     PY,
-    others_block,
+    TRACK,
 )
 
 DEFAULT_OUTCOME_REWARDS = {"passed": 100.0, "collision": -100.0, "red_light": -100.0,
@@ -87,7 +93,9 @@ _TWO_CIRCLES = len(TWO_CIRCLE_SLOTS)
 _EGO_REACH_M = EGO_CIRCLE_OFFSET_M + EGO_RADIUS_M + SAFETY_MARGIN_M
 # per slot, a bound on a participant's circle offset + radius per metre of max(|L|, |W|): a vehicle's
 # or cyclist's is max(L, W)/2 exactly; a pedestrian's radius √(L²/4 + W²/4) ≤ max(|L|, |W|)·√2/2
-_SLOT_REACH = np.array([0.5] * _TWO_CIRCLES + [math.sqrt(0.5)] * (N_OTHERS - _TWO_CIRCLES))
+_SLOT_REACH = (0.5,) * _TWO_CIRCLES + (math.sqrt(0.5),) * (N_OTHERS - _TWO_CIRCLES)
+_SLOT_STARTS = tuple(range(OTHERS.start, STATE_DIM, OTHER_STATE_DIM))  # each slot's first index in a state
+_PEDESTRIANS_START = _SLOT_STARTS[_TWO_CIRCLES]
 # [m] what the bounds and the screening leave for rounding (and √(x + 1e-12) ≤ √x + 1e-6 of the
 # constraints' ε): a value of g the screening puts below −_SLACK_M is negative in
 # safety_constraints' own arithmetic, whose rounding errors are ~1e-13 m at intersection scale
@@ -97,29 +105,38 @@ _SLACK_M = 1e-5
 def safety_penalty(state: np.ndarray) -> float:
     """φ of :func:`~crossroads.idc.constraints.safety_constraints` of one state, exactly, computing
     those 56 constraints only when one of them may be violated (about never: they cost ~75 µs, the
-    screening ~10 µs). φ is exactly 0 when every g < 0; the screening shows that without them:
+    screening ~10 µs). φ is exactly 0 when every g < 0; the screening shows that without them, on
+    Python floats:
 
     1. the participants out of reach: g ≤ (ego circle offset + radius + margin) + (the other's
        offset + radius ≤ max(|L|, |W|)/2, √2·max(|L|, |W|)/2 for a pedestrian) − the distance of the
        centres, by the triangle inequality;
-    2. for the few within reach, every circle pair's g on Python floats (the same formula, rounded
-       differently by at most ~1e-13 m).
+    2. for the few within reach, every circle pair's g (the same formula, rounded differently by
+       at most ~1e-13 m).
 
     Either shows every g < −_SLACK_M, or the constraints are computed (and φ is theirs)."""
-    s = np.asarray(state, dtype=np.float64)
-    o = others_block(s[:STATE_DIM])
-    px, py, phi = float(s[PX]), float(s[PY]), float(s[PHI])
-    distance = np.hypot(o[:, O_PX] - px, o[:, O_PY] - py)
-    size = np.abs(o[:, O_L:O_W + 1]).max(axis=1)
-    near = (distance - _SLOT_REACH * size <= _EGO_REACH_M + _SLACK_M).nonzero()[0]
-    if len(near) == 0:
+    s = np.asarray(state, dtype=np.float64)[:STATE_DIM]
+    return _safety_penalty(s, s.tolist())
+
+
+def _safety_penalty(state: np.ndarray, values: list[float]) -> float:
+    """:func:`safety_penalty` of ``state`` (108,), whose values are ``values`` (its ``tolist()``)."""
+    px, py = values[PX], values[PY]
+    near = []
+    for slot, start in enumerate(_SLOT_STARTS):
+        dx, dy = values[start] - px, values[start + 1] - py
+        reach = _EGO_REACH_M + _SLACK_M + _SLOT_REACH[slot] * max(abs(values[start + O_L]), abs(values[start + O_W]))
+        if dx * dx + dy * dy <= reach * reach:
+            near.append(start)
+    if not near:
         return 0.0
+    phi = values[PHI]
     ex, ey = EGO_CIRCLE_OFFSET_M * math.cos(phi), EGO_CIRCLE_OFFSET_M * math.sin(phi)
     ego = ((px - ex, py - ey), (px + ex, py + ey))
     reach = EGO_RADIUS_M + SAFETY_MARGIN_M + _SLACK_M
-    for slot in near.tolist():
-        ox, oy, _, ophi, length, width = o[slot].tolist()
-        if slot < _TWO_CIRCLES:
+    for start in near:
+        ox, oy, _, ophi, length, width = values[start: start + OTHER_STATE_DIM]
+        if start < _PEDESTRIANS_START:
             off = max(length - width, 0.0) / 2.0
             cx, cy = off * math.cos(ophi), off * math.sin(ophi)
             circles = ((ox - cx, oy - cy, width / 2.0), (ox + cx, oy + cy, width / 2.0))
@@ -128,14 +145,19 @@ def safety_penalty(state: np.ndarray) -> float:
         for x, y, radius in circles:
             for gx, gy in ego:
                 if math.hypot(x - gx, y - gy) < radius + reach:  # g ≥ −_SLACK_M: compute them
-                    return float(penalty(safety_constraints(s[:STATE_DIM])))
+                    return float(penalty(safety_constraints(state)))
     return 0.0
 
 
 def road_penalty(state: np.ndarray) -> float:
     """φ of :func:`~crossroads.idc.constraints.road_constraints` of one state (from its x_track),
     exactly; 0 at once when both circle centres are within the bound (|Δy| + offset·|sin Δφ|)."""
-    dy, dphi = float(state[DY]), float(state[DPHI])
+    s = np.asarray(state, dtype=np.float64)[:STATE_DIM]
+    return _road_penalty(s, float(s[DY]), float(s[DPHI]))
+
+
+def _road_penalty(state: np.ndarray, dy: float, dphi: float) -> float:
+    """:func:`road_penalty` of ``state`` (108,), whose Δy and Δφ are ``dy``, ``dphi``."""
     if abs(dy) + EGO_CIRCLE_OFFSET_M * abs(math.sin(dphi)) <= ROAD_LATERAL_BOUND_M:
         return 0.0
     return float(penalty(road_constraints(state)))
@@ -158,9 +180,10 @@ def step_utility(state: np.ndarray, applied: tuple[float, float]) -> float:
     """l(s, u) of :func:`crossroads.idc.utility.utility` for one float64 state and a (clipped)
     action, on Python floats: the same products w·(x·x) summed in the same order from 0, so the
     same number, without ~20 numpy calls on 0-d arrays."""
+    values = state[:TRACK.stop].tolist()
     total = 0.0
     for weight, of_state, index in _UTILITY_TERMS:
-        x = float(state[index]) if of_state else applied[index]
+        x = values[index] if of_state else applied[index]
         total += weight * (x * x)
     return total
 
@@ -173,7 +196,8 @@ def step_reward(config: RewardConfig, state: np.ndarray, action: np.ndarray, nex
     # np.clip's min(max(x, lo), hi), on the two floats
     applied = (min(max(steer, -STEER_RATE_MAX), STEER_RATE_MAX), min(max(jerk, -JERK_MAX), JERK_MAX))
     l_value = step_utility(np.asarray(state, dtype=np.float64), applied)
-    nxt = np.asarray(next_state, dtype=np.float64)
-    phi = safety_penalty(nxt) + road_penalty(nxt)
+    nxt = np.asarray(next_state, dtype=np.float64)[:STATE_DIM]
+    values = nxt.tolist()
+    phi = _safety_penalty(nxt, values) + _road_penalty(nxt, values[DY], values[DPHI])
     bonus = 0.0 if outcome is None else config.outcome_rewards[outcome]
     return RewardParts(l_value, config.penalty_weight * phi, bonus)

@@ -283,7 +283,7 @@ class ScenarioSpec(BaseModel):
         description="[s] A participant other than the ego that stands this long inside the junction "
         "(on an internal lane or a crossing) is removed, and the removal is an episode event; "
         "null turns this gridlock breaker off.")
-    pedestrian_courtesy: bool = Field(
+    standing_ego_courtesy: bool = Field(
         default=True,
         description="Pedestrians stop rather than walk into the ego while it stands (sim/courtesy.py); "
         "false keeps SUMO's pedestrians, who walk their crossings whatever stands on them.")
@@ -490,7 +490,7 @@ def to_world_config(spec: ScenarioSpec, base_dir: str | Path | None = None) -> W
         warmup_s=spec.warmup_s,
         timeout_s=spec.timeout_s,
         gridlock_stand_s=spec.gridlock_stand_s,
-        pedestrian_courtesy=spec.pedestrian_courtesy,
+        standing_ego_courtesy=spec.standing_ego_courtesy,
         perception_noise=spec.perception_noise,
         rho=spec.rho,
     )

@@ -14,6 +14,7 @@ import typer
 from crossroads.cli_errors import fail
 
 Sampler = Literal["tpe", "random"]
+ExecutorKind = Literal["pool", "batch"]
 
 
 def search(
@@ -37,6 +38,9 @@ def search(
         metavar="DIR", help="where the failures go as scenario files (default: <data dir>/failures/...)")] = None,
     shrink_limit: Annotated[int | None, typer.Option(
         min=0, help="shrink only the first N distinct failures; the rest are kept as found (default: all)")] = None,
+    executor: Annotated[ExecutorKind, typer.Option(
+        help="pool: long-lived search workers, one forked episode per trial; batch: a fresh batch "
+             "worker process per trial (slower; as before). Ray (--ray) always uses its actors")] = "pool",
     resume: Annotated[int | None, typer.Option(metavar="SEARCH_ID", help="resume a stored search instead")] = None,
     report: Annotated[Path | None, typer.Option(
         metavar="OUT.html", help="also write the search's report (outcome against each parameter)")] = None,
@@ -44,14 +48,13 @@ def search(
 ) -> None:
     """Search scenario space for POLICY's failures: shrink each one and keep it as a scenario file."""
     _search(policy, space, budget, workers, ray, db, seed, sampler, generation, shrink_steps,
-            shrink_limit, failures_dir, resume, report, as_json)
+            shrink_limit, failures_dir, resume, report, as_json, executor)
 
 
 def _search(policy: str | None, space_file: Path | None, budget: int, workers: int | None,
             ray: str | None, db: str | None, seed: int, sampler: str, generation: int | None,
             shrink_steps: int | None, shrink_limit: int | None, failures_dir: Path | None,
-            resume: int | None,
-            report: Path | None, as_json: bool) -> None:
+            resume: int | None, report: Path | None, as_json: bool, executor: str = "pool") -> None:
     import os
 
     from tqdm import tqdm
@@ -91,7 +94,7 @@ def _search(policy: str | None, space_file: Path | None, budget: int, workers: i
 
             runner = SearchRunner(store, search_id, workers=workers, ray_address=settings.ray_address,
                                   data_dir=settings.data_dir, on_progress=progress,
-                                  shrink_limit=shrink_limit)
+                                  shrink_limit=shrink_limit, executor=executor)
             try:
                 summary = runner.run()
             except KeyboardInterrupt:

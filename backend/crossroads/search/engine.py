@@ -2,23 +2,28 @@
 
     search_id = create_search_for(store, space=space, policy="models/apg.pt+shield", budget=300)
     summary = SearchRunner(store, search_id, workers=2).run()            # blocking (the CLI)
+    SearchRunner(store, search_id, workers=2, executor="batch").run()    # a batch worker per trial
     runner = SearchRunner(store, search_id); runner.start(); runner.progress; runner.cancel()
 
 **Episodes.** Each trial is the scenario :func:`~crossroads.search.space.scenario_for` makes (the
 nominal one with the trial's values, one run, the trial's seed), stored and run as a batch of one
-run by :class:`~crossroads.evaluation.batch.BatchRunner` through the evaluation executors (local
-worker processes, or Ray actors): so it runs the way ``crossroads evaluate`` runs that scenario's
-file, traces of failures included, and the studio can play it back. Up to ``workers`` trials run at
-once, each in its own worker (a worker serves one scenario).
+run by :class:`~crossroads.evaluation.batch.BatchRunner`: so it is recorded the way
+``crossroads evaluate`` records that scenario's file, traces of failures included, and the studio
+can play it back. Up to ``workers`` trials run at once, on the search's long-lived workers
+(:mod:`crossroads.search.pool`: started once, each trial in a child forked from one, the episode a
+fresh batch worker would give); with ``executor="batch"``, on Ray, or where there is no fork,
+each trial starts a batch worker (a local process or a Ray actor) of its own, as a batch does.
 
-**Search.** In generations of ``generation`` trials: a sampler seeded from the search's seed and
-the generation's index (optuna's TPE, or its uniform random sampler for a baseline) proposes the
-generation's points from every trial before it (``constant_liar`` spreads the points of one
-generation); they run; their objectives (:mod:`crossroads.search.objective`) are told in trial
-order. So a search is deterministic given its seed and generation size (and deterministic
-episodes), however many workers run it, and a resumed search proposes exactly what an
-uninterrupted one would: its stored trials are told again, not run again. The scenario seed of
-each trial is drawn from the search's seed, not proposed (:func:`~crossroads.search.space.draw_seed`).
+**Search.** Optuna's TPE sampler (or its uniform random sampler, a baseline) proposes trial ``n``
+from the trials 0 … n − L before it (L: the search's ``generation``), trials n − L + 1 … n − 1
+still pending (``constant_liar`` keeps it away from them), with a sampler seeded from the search's
+seed and ``n``; objectives (:mod:`crossroads.search.objective`) are told in trial order. So a search
+is deterministic given its seed and generation size (and deterministic episodes), however many
+workers run it and however long each episode takes, and a resumed search proposes exactly what an
+uninterrupted one would: its stored trials are told again, not run again. There is no barrier
+between generations: trial n is proposed, and a free worker takes it, as soon as trials 0 … n − L
+are done, whatever the others of its "generation" are doing. The scenario seed of each trial is
+drawn from the search's seed, not proposed (:func:`~crossroads.search.space.draw_seed`).
 
 **Shrinking.** Then every distinct failing trial is shrunk (:mod:`crossroads.search.shrink`), up
 to ``shrink_steps`` episodes each, those episodes stored as trials too (numbers from ``budget``
@@ -32,8 +37,9 @@ import math
 import os
 import threading
 import warnings
+from collections import deque
 from collections.abc import Callable, Mapping
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -41,17 +47,20 @@ from typing import Any
 import numpy as np
 
 from crossroads.evaluation.background import BackgroundJob
+from crossroads.evaluation.executors import FORK_EPISODES, Executor
 from crossroads.policy.identity import policy_identity
 from crossroads.scenario.spec import ScenarioSpec, content_hash
 from crossroads.search import records
 from crossroads.search.collection import write_failure
 from crossroads.search.objective import FAILURE_VALUE, objective
+from crossroads.search.pool import PoolExecutor, TrialPool
 from crossroads.search.shrink import Shrinker
 from crossroads.search.space import Space, draw_seed, scenario_for, validate_space
 from crossroads.store import Store, crud
 from crossroads.store.search_tables import SearchTrial
 
-SAMPLER_STREAM = 0  # spawn key of the generations' sampler seeds (the trial seeds use 1)
+SAMPLER_STREAM = 0  # spawn key of the trials' sampler seeds (the trials' scenario seeds use 1)
+EXECUTORS = ("pool", "batch")  # where trials run: long-lived search workers, or a batch worker each
 TPE_STARTUP_TRIALS = 10  # TPE proposes uniformly at random until this many trials are told
 PARAM_TOLERANCE = 1e-9  # a stored trial's value and the one proposed again must agree this well
 
@@ -146,8 +155,9 @@ def make_sampler(kind: str, seed: int) -> Any:
                           n_startup_trials=TPE_STARTUP_TRIALS, warn_independent_sampling=False)
 
 
-def generation_seed(search_seed: int, generation: int) -> int:
-    state = np.random.SeedSequence(search_seed, spawn_key=(SAMPLER_STREAM, generation))
+def trial_sampler_seed(search_seed: int, number: int) -> int:
+    """The seed of the sampler that proposes trial ``number`` of a search."""
+    state = np.random.SeedSequence(search_seed, spawn_key=(SAMPLER_STREAM, number))
     return int(state.generate_state(1, np.uint32)[0])
 
 
@@ -176,8 +186,12 @@ class SearchRunner(BackgroundJob[dict[str, Any]]):
     def __init__(self, store: Store, search_id: int, *, workers: int | None = None,
                  ray_address: str | None = None, data_dir: str | Path | None = None,
                  on_progress: SearchProgressCallback | None = None,
-                 shrink_limit: int | None = None) -> None:
+                 shrink_limit: int | None = None, executor: str = "pool") -> None:
         super().__init__(f"search {search_id}")
+        if executor not in EXECUTORS:
+            raise ValueError(f"executor must be one of {', '.join(EXECUTORS)}, got {executor!r}")
+        self.executor = executor
+        self._pool: TrialPool | None = None
         self.store = store
         self.shrink_limit = shrink_limit  # shrink only the first this many failures (None: all)
         self.search_id = search_id
@@ -286,6 +300,10 @@ class SearchRunner(BackgroundJob[dict[str, Any]]):
                              None if interrupted else f"{type(exc).__name__}: {exc}")
             raise
         finally:
+            with self._lock:
+                pool, self._pool = self._pool, None
+            if pool is not None:
+                pool.close()
             if ray_started:
                 import ray
 
@@ -330,7 +348,7 @@ class SearchRunner(BackgroundJob[dict[str, Any]]):
                    seed: int) -> TrialResult:
         """Run trial ``number`` as a batch of one run (resuming its batch if it has one) and
         record it; its result."""
-        from crossroads.evaluation.batch import BatchRunner, create_batch_for, make_executor
+        from crossroads.evaluation.batch import BatchRunner, create_batch_for
 
         if self.cancelled:
             return TrialResult(number, "cancelled", None)
@@ -352,7 +370,7 @@ class SearchRunner(BackgroundJob[dict[str, Any]]):
                                 batch_id=batch_id)
         reports: list[Any] = []
         runner = BatchRunner(self.store, batch_id, data_dir=self.data_dir,
-                             executor=make_executor(workers=1, ray_address=self.ray_address),
+                             executor=self._executor_for_trial(),
                              on_progress=lambda _d, _t, last: reports.append(last) if last else None)
         with self._lock:
             self._active.add(runner)
@@ -376,11 +394,17 @@ class SearchRunner(BackgroundJob[dict[str, Any]]):
         self._count_trial(kind, trial)
         return trial
 
-    def _run_many(self, jobs: list[tuple[int, str, int | None, dict[str, Any], int]]) -> dict[int, TrialResult]:
-        if not jobs:
-            return {}
-        results = self._in_threads(lambda job: self._run_trial(*job), jobs, "search")
-        return {r.number: r for r in results}
+    def _executor_for_trial(self) -> Executor:
+        """Where a trial's episode runs: the search's long-lived workers (started with the first
+        trial), or, with ``executor="batch"``, Ray or where there is no fork, a fresh batch worker."""
+        from crossroads.evaluation.batch import make_executor
+
+        if self.executor != "pool" or self.ray_address or not FORK_EPISODES:
+            return make_executor(workers=1, ray_address=self.ray_address)
+        with self._lock:
+            if self._pool is None:
+                self._pool = TrialPool(self.policy_ref, self.workers)
+            return PoolExecutor(self._pool)
 
     def _in_threads(self, task: Callable[[Any], Any], jobs: list[Any], what: str) -> list[Any]:
         """``task`` of every job, up to ``workers`` at once; an exception here (Ctrl-C) or in a
@@ -397,41 +421,69 @@ class SearchRunner(BackgroundJob[dict[str, Any]]):
     # --- the search phase ---------------------------------------------------------------------
 
     def _search_phase(self) -> None:
+        """Propose and run the search's trials. Trial ``n`` is proposed once trials 0 … n − L
+        (L: the search's ``generation``) have been told, before trial n − L + 1 is, so it sees
+        exactly those results, with trials n − L + 1 … n − 1 pending (TPE's constant liar), and a
+        sampler seeded from the search's seed and ``n``: the same points whatever the workers and
+        the episodes' durations. Up to ``workers`` trials run at once; a free worker takes the next
+        proposed trial without waiting for the rest of its "generation"."""
         import optuna
         from optuna.trial import TrialState
 
         distributions = _distributions(self.space)
         study = optuna.create_study(direction="minimize", sampler=make_sampler(self.sampler, 0))
-        for g in range(math.ceil(self.budget / self.generation)):
-            if self.cancelled:
-                return
-            numbers = range(g * self.generation, min(self.budget, (g + 1) * self.generation))
-            study.sampler = make_sampler(self.sampler, generation_seed(self.seed, g))
-            asked = [study.ask(distributions) for _ in numbers]
-            jobs = []
-            for number, trial in zip(numbers, asked, strict=True):
-                params = {p.path: p.cast(trial.params[p.path]) for p in self.space.parameters}
-                row = self._stored.get(number)
-                if row is not None and not _same_params(row.params, params):
-                    raise SearchError(
-                        f"search {self.search_id}: trial {number} was stored with {row.params}, "
-                        f"the sampler now proposes {params} (another optuna version?); "
-                        "start a new search")
-                if row is None or row.outcome is None:
-                    jobs.append((number, "search", None, params,
-                                 draw_seed(self.space, self.seed, number)))
-            ran = self._run_many(jobs)
-            if self.cancelled:
-                return
-            for number, trial in zip(numbers, asked, strict=True):
-                if number in ran:
-                    value = ran[number].objective
-                else:
-                    value = self._stored[number].objective
-                if value is None:
-                    study.tell(trial, state=TrialState.FAIL)
-                else:
-                    study.tell(trial, value)
+        lag = self.generation
+        asked: dict[int, Any] = {}
+        finished: dict[int, float | None] = {}  # objectives not yet told
+        to_run: deque[tuple[int, str, int | None, dict[str, Any], int]] = deque()
+
+        def ask(number: int) -> None:
+            study.sampler = make_sampler(self.sampler, trial_sampler_seed(self.seed, number))
+            trial = study.ask(distributions)
+            params = {p.path: p.cast(trial.params[p.path]) for p in self.space.parameters}
+            row = self._stored.get(number)
+            if row is not None and not _same_params(row.params, params):
+                raise SearchError(
+                    f"search {self.search_id}: trial {number} was stored with {row.params}, "
+                    f"the sampler now proposes {params} (another optuna or Crossroads version?); "
+                    "start a new search")
+            asked[number] = trial
+            if row is not None and row.outcome is not None:  # resumed: told again, not run
+                finished[number] = row.objective
+            else:
+                to_run.append((number, "search", None, params, draw_seed(self.space, self.seed, number)))
+
+        for number in range(min(lag, self.budget)):
+            ask(number)
+        told = 0
+        with ThreadPoolExecutor(max_workers=self.workers,
+                                thread_name_prefix=f"crossroads-search-{self.search_id}") as threads:
+            running: dict[Future[TrialResult], int] = {}
+            try:
+                while told < self.budget and not self.cancelled:
+                    if told in finished:
+                        value = finished.pop(told)
+                        if value is None:
+                            study.tell(asked.pop(told), state=TrialState.FAIL)
+                        else:
+                            study.tell(asked.pop(told), value)
+                        if told + lag < self.budget:
+                            ask(told + lag)
+                        told += 1
+                        continue
+                    while to_run and len(running) < self.workers:
+                        job = to_run.popleft()
+                        running[threads.submit(self._run_trial, *job)] = job[0]
+                    done, _ = wait(running, return_when=FIRST_COMPLETED)
+                    for future in done:
+                        number = running.pop(future)
+                        result = future.result()
+                        if result.outcome == "cancelled":
+                            return
+                        finished[number] = result.objective
+            except BaseException:
+                self.cancel()  # the trials in flight stop at once rather than run to the end
+                raise
 
     # --- the shrink phase ---------------------------------------------------------------------
 

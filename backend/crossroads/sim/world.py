@@ -34,7 +34,7 @@ from crossroads.planning import CandidatePath, plan_candidates
 from crossroads.sim.abnormal import AbnormalTraffic
 from crossroads.sim.blocking import BlockedBy, held_whole_episode, nearest_barrier
 from crossroads.sim.config import WorldConfig
-from crossroads.sim.courtesy import PedestrianCourtesy
+from crossroads.sim.courtesy import Courtesy, Movers
 from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
 from crossroads.sim.gridlock import GridlockBreaker
@@ -209,7 +209,7 @@ class World:
         self.abnormal.apply_speed_limits(self.session)
         self._noise_rng = np.random.default_rng(noise_seq)
         self._gridlocks = GridlockBreaker(self.junction, cfg.gridlock_stand_s)
-        self._courtesy = PedestrianCourtesy(cfg.pedestrian_courtesy)
+        self._courtesy = Courtesy(cfg.standing_ego_courtesy)
         for _ in range(int(round(cfg.warmup_s / SIM_STEP_S))):
             self.session.step()
             self.abnormal.update(self.session)
@@ -348,10 +348,9 @@ class World:
         x, y, speed, _, heading = self.ego[:5].tolist()
         if not self._courtesy.may_act(speed):
             return
-        walkers = (snap.kind_code == _PEDESTRIAN).nonzero()[0]
-        self._courtesy.update(self.session, snap.ids[walkers], snap.x[walkers], snap.y[walkers],
-                              snap.heading[walkers], snap.speed[walkers],
-                              (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M))
+        rows = (snap.kind_code == _PEDESTRIAN).nonzero()[0]
+        walkers = Movers(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows])
+        self._courtesy.update(self.session, walkers, (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M))
 
     def _read_sumo_ego(self) -> None:
         """The ego's state from SUMO, which drove it this step (policy ``sumo``)."""

@@ -32,7 +32,8 @@ from crossroads.store.tables import (
 )
 
 FINISHED_STATUSES = ("done", "cancelled", "failed")
-UNFINISHED_STATUSES = tuple(s for s in BATCH_STATUSES if s not in FINISHED_STATUSES)  # queued, running
+# queued, running, interrupted (a server stopped under it): what a restarted service may resume
+UNFINISHED_STATUSES = tuple(s for s in BATCH_STATUSES if s not in FINISHED_STATUSES)
 
 
 def in_id_range(value: int | None, *, low: int = 1) -> bool:

@@ -41,7 +41,7 @@ NAMING_CONVENTION = {
     "pk": "pk_%(table_name)s",
 }
 
-BATCH_STATUSES = ("queued", "running", "done", "cancelled", "failed")
+BATCH_STATUSES = ("queued", "running", "done", "cancelled", "failed", "interrupted")
 EPISODE_OUTCOMES = ("passed", "collision", "red_light", "off_road", "timeout", "error")
 TRACE_MODES = ("all", "failed", "none")
 POLICY_KINDS = ("builtin", "checkpoint", "onnx", "plugin")  # how a policy is identified (crossroads.policy.identity)
@@ -117,6 +117,10 @@ class Batch(Base):
     # When a user asked to cancel the batch: written at once, before any runner has stopped, so the
     # cancel survives a restart (a batch with it set is never resumed, whatever its status says).
     cancel_requested_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    # When the API process running (or queueing) the batch last said it still does (every few
+    # seconds): a stale one on an unfinished batch means that process stopped (status then
+    # ``interrupted``). None: never run by the API (e.g. `crossroads evaluate`), or before 0007.
+    heartbeat_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     started_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)

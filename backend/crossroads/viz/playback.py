@@ -2,8 +2,11 @@
 
 :class:`Playback` plays one :class:`~crossroads.evaluation.trace.Trace` on a target (a
 ``viser.ClientHandle`` for one tab, or the whole ``viser.ViserServer``): a timeline slider (scrub),
-play/pause, step ±1, speed 0.25×–4×, and plots of speed, steering angle, acceleration and speed
-mode over time (the paper's Fig. 7) as uPlot charts with the current frame marked.
+play/pause, step ±1, speed 0.25×–4× (a dropdown, and slower/faster buttons the studio's keyboard
+keys press), a jump-to-event list of the episode's events (the collision with its moment and the
+participant hit, marked in the scene from that frame on), the view's camera, layers and legend
+(:class:`~crossroads.viz.views.ViewControls`), and plots of speed, steering angle, acceleration and
+speed mode over time (the paper's Fig. 7) as uPlot charts with the current frame marked.
 
 :class:`PlaybackServer` starts a ViserServer and gives every tab that connects its own scene, GUI
 and player (``on_client_connect``), with a dropdown to pick the episode when several traces are
@@ -15,7 +18,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -24,10 +27,36 @@ import numpy as np
 from crossroads.evaluation.trace import SPEED_MODES, Trace
 from crossroads.network.model import Junction
 from crossroads.viz.viewer import Viewer, collided_id
+from crossroads.viz.views import ViewControls
 
 SPEEDS: dict[str, float] = {"0.25×": 0.25, "0.5×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0}
 MAX_FPS = 30.0  # [1/s] frames shown at most this often (faster playback skips frames)
 PLOT_MARKER_PERIOD_S = 0.25  # [s] the plots' "now" marker moves at most this often while playing
+SPEED_STEPS = ("slower −", "faster +")  # the speed buttons (the studio's - and + keys press them)
+NO_EVENT = "(pick an event to jump to)"
+
+
+def event_text(event: Mapping[str, Any], collided: str | None = None) -> str:
+    """One of an episode's events (``result["events"]``) in words."""
+    kind, value = str(event.get("event", "?")), event.get("value")
+    if kind == "speed_mode":
+        return f"speed mode → {value}"
+    if kind == "path":
+        return f"path → #{value}"
+    if kind == "shield_braking":
+        return "shield brakes" if value else "shield releases"
+    if kind == "blocked_by":
+        return f"blocked by {value}"
+    if kind == "outcome":
+        return f"✖ collision with {collided}" if value == "collision" and collided else f"outcome: {value}"
+    detail = value if value is not None else event.get("id", "")
+    return f"{kind}: {detail}" if detail != "" else kind
+
+
+def event_frames(times: np.ndarray, events: Sequence[Mapping[str, Any]]) -> list[int]:
+    """The frame of each event: the first frame at or after its time (the last frame at most)."""
+    t = np.asarray(times, dtype=np.float64)
+    return [int(min(np.searchsorted(t, float(e.get("t", 0.0)) - 1e-6), len(t) - 1)) for e in events]
 
 JunctionLoader = Callable[[Trace], Junction]
 
@@ -111,16 +140,36 @@ class Playback:
         self._series = fig7_series(trace)
         self._last_marker = -1.0
         self._syncing = False  # set while the player itself moves the slider
+        self._spot_shown = False  # the collision's mark (hidden before its moment)
         self.viewer = Viewer(target, junction if junction is not None else junction_of(trace),
                              trace.header.get("candidates", ()))
         self.collided_id = collided_id(trace.header.get("result", {}))
         self.viewer.mark_collision(self.collided_id)  # the participant the outcome names
+        self.events: list[dict[str, Any]] = [dict(e) for e in trace.header.get("result", {}).get("events", ())]
+        self.event_frames = event_frames(self._series["t"], self.events)
+        self.collision_frame = self._mark_collision_spot()
         self._build_gui(title, plots, folder)
         self.seek(0)
         self._thread = threading.Thread(target=self._run, name="crossroads-playback", daemon=True)
         self._thread.start()
         if autoplay:
             self.play()
+
+    def _mark_collision_spot(self) -> int | None:
+        """Mark where the ego hit (the participant's place on the last frame, else the ego's),
+        shown from the collision's frame on; that frame (None: no collision)."""
+        if self.trace.header.get("result", {}).get("kind") != "collision":
+            return None
+        last = self.n - 1
+        frame = self.trace.frame(last)
+        xy = [float(v) for v in frame["ego"][:2]]
+        for p in frame.get("participants", ()):
+            if str(p.get("id")) == self.collided_id:
+                xy = [float(p["x"]), float(p["y"])]
+        t = float(self._series["t"][last])
+        who = f" with {self.collided_id}" if self.collided_id else ""
+        self.viewer.show_collision_spot(xy, f"✖ collision{who} at t {t:.1f} s", visible=False)
+        return last
 
     # --- GUI ----------------------------------------------------------------------------------------
 
@@ -144,9 +193,27 @@ class Playback:
             self.play_button = gui.add_button("Play")
             self.step_buttons = gui.add_button_group("Step", ["◀ −1", "+1 ▶"])
             self.speed_dropdown = gui.add_dropdown("Speed", tuple(SPEEDS), initial_value="1×")
+            self.speed_buttons = gui.add_button_group("Speed ±", list(SPEED_STEPS))
+            self.event_labels = [f"{k + 1}. t {float(e.get('t', 0.0)):.1f} s · {event_text(e, self.collided_id)}"
+                                 for k, e in enumerate(self.events)]
+            self.event_dropdown = gui.add_dropdown("Jump to event", (NO_EVENT, *self.event_labels),
+                                                   initial_value=NO_EVENT)
             self.status = gui.add_markdown("")
-        self._gui += [self.info, self.slider, self.play_button, self.step_buttons,
-                      self.speed_dropdown, self.status]
+            self.keys_hint = gui.add_markdown("Keys (in the studio): space play/pause · ←/→ step · +/− speed")
+        self._gui += [self.info, self.slider, self.play_button, self.step_buttons, self.speed_dropdown,
+                      self.speed_buttons, self.event_dropdown, self.status, self.keys_hint]
+        self.view = ViewControls(gui, self.viewer)
+        self._gui += self.view.handles
+
+        @self.speed_buttons.on_click
+        def _(_event: Any) -> None:
+            self.change_speed(-1 if self.speed_buttons.value == SPEED_STEPS[0] else 1)
+
+        @self.event_dropdown.on_update
+        def _(_event: Any) -> None:
+            label = str(self.event_dropdown.value)
+            if label in self.event_labels:
+                self.jump_to_event(self.event_labels.index(label))
 
         @self.slider.on_update
         def _(_event: Any) -> None:
@@ -231,10 +298,30 @@ class Playback:
         with self._lock:
             self.index = int(min(max(i, 0), self.n - 1))
             self.viewer.show_frame(self.trace.frame(self.index), trail=self._ego_xy[: self.index + 1])
+            spot = self.viewer.collision_spot
+            if spot is not None and self.collision_frame is not None:
+                shown = self.index >= self.collision_frame
+                if shown != self._spot_shown:
+                    spot.visible = self._spot_shown = shown
             self._sync_gui(force_plots=not self.playing)
 
     def step(self, n: int = 1) -> None:
         self.seek(self.index + n)
+
+    def jump_to_event(self, k: int) -> None:
+        """Pause on the frame of the episode's event ``k`` (0-based)."""
+        if not 0 <= k < len(self.events):
+            raise ValueError(f"event must be within 0 and {len(self.events) - 1}, got {k}")
+        self.pause()
+        self.seek(self.event_frames[k])
+
+    def change_speed(self, direction: int) -> None:
+        """One step slower (-1) or faster (+1) along SPEEDS, kept within them."""
+        values = sorted(SPEEDS.values())
+        k = min(range(len(values)), key=lambda j: abs(values[j] - self.speed))
+        self.set_speed(values[min(max(k + (1 if direction > 0 else -1), 0), len(values) - 1)])
+        with self._lock:
+            self._sync_gui(force_plots=False)
 
     def play(self) -> None:
         with self._lock:

@@ -15,6 +15,11 @@ Scene tree (names relative to the SUMO frame shifted so the junction's centre is
     /ego, /ego/body, /ego/sensors/<name>, /ego/hud
     /ego_trail
     /actors/<id>, /actors/<id>/abnormal     participants (boxes coloured by kind) and their marks
+    /collision, /collision/label    where the ego collided (shown by a playback from that moment)
+
+Layers (:meth:`Viewer.set_layer`: sensors, paths, traffic, labels) hide or show whole subtrees;
+the camera modes (:meth:`Viewer.set_camera_mode`: orbit, follow, top) place every tab's camera
+on each frame (:mod:`crossroads.viz.camera`).
 
 Frames are the JSON dicts of :meth:`crossroads.evaluation.trace.Trace.frame`;
 :func:`frame_of_observation` makes the same dict from a live world's Observation, and
@@ -36,6 +41,7 @@ from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M
 from crossroads.evaluation.trace import TraceRecorder
 from crossroads.network.model import Junction
 from crossroads.perception.sensors import DEFAULT_SENSORS, Sensor
+from crossroads.viz.camera import camera_pose
 from crossroads.viz.scene import SceneData, head_colour, junction_scene, sector_mesh
 
 RGB = tuple[int, int, int]
@@ -70,6 +76,8 @@ SENSOR_COLOURS: dict[str, RGB] = {
     "radar-front-left": (255, 150, 120), "radar-front-right": (255, 150, 120),
 }
 SENSOR_OPACITY = 0.12
+COLLISION_SPOT: RGB = (235, 30, 30)
+LAYER_NAMES = ("sensors", "paths", "traffic", "labels")
 Z_PATH = 0.08
 Z_TRAIL = 0.1
 
@@ -124,6 +132,10 @@ class Viewer:
         self._trail: list[tuple[int, float, float]] = []
         self.frames_shown = 0
         self.last_frame: dict[str, Any] | None = None
+        self.layers: dict[str, bool] = dict.fromkeys(LAYER_NAMES, True)
+        self.camera_mode = "orbit"
+        self._ego_pose: tuple[float, float, float] | None = None  # scene x, y, heading
+        self.collision_spot: Any = None
         with self.target.atomic():
             self._build_static(sensors)
             self.set_candidates(candidates)
@@ -166,6 +178,9 @@ class Viewer:
             "centre": self._lines("/junction/markings/centre", d.centre_lines, YELLOW_PAINT, 0.15),
             "stop_lines": self._lines("/junction/stop_lines", d.stop_lines, PAINT, 0.4),
         }
+        # parents of the candidate paths and the participants: one switch hides a whole layer
+        self.paths_root = scene.add_frame("/paths", show_axes=False)
+        self.actors_root = scene.add_frame("/actors", show_axes=False)
         for head in d.signal_heads:
             base = f"/junction/signals/{node_name(head.approach)}/{head.turn}"
             pos = self._xyz(head.position)
@@ -192,8 +207,12 @@ class Viewer:
             "/ego_trail", np.zeros((1, 2, 3), np.float32), colors=TRAIL, thickness=0.25,
             visible=False)
 
+    @property
+    def scene_size_m(self) -> float:
+        return float(max(self.data.bounds[2] - self.data.bounds[0], self.data.bounds[3] - self.data.bounds[1]))
+
     def _set_camera(self) -> None:
-        r = max(self.data.bounds[2] - self.data.bounds[0], self.data.bounds[3] - self.data.bounds[1])
+        r = self.scene_size_m
         position, look_at = (0.0, -0.55 * r, 0.45 * r), (0.0, 0.0, 0.0)
         camera = getattr(self.target, "initial_camera", None) or getattr(self.target, "camera", None)
         if camera is None:
@@ -203,6 +222,72 @@ class Viewer:
             camera.look_at = look_at
         except Exception:  # noqa: BLE001 — a camera that cannot be set yet is not an error
             pass
+
+    # --- layers and cameras ---------------------------------------------------------------------------
+
+    def set_layer(self, layer: str, visible: bool) -> None:
+        """Show or hide a layer: ``sensors`` (their ranges), ``paths`` (the candidate paths),
+        ``traffic`` (every other road user), ``labels`` (the HUD and the marks over road users)."""
+        if layer not in self.layers:
+            raise ValueError(f"layer must be one of {', '.join(LAYER_NAMES)}, got {layer!r}")
+        with self._lock, self.target.atomic():
+            self.layers[layer] = bool(visible)
+            if layer == "sensors":
+                for handle in self.sensors.values():
+                    handle.visible = visible
+            elif layer == "paths":
+                self.paths_root.visible = visible
+            elif layer == "traffic":
+                self.actors_root.visible = visible
+            else:
+                self.hud.visible = visible
+                for mark in self._marks.values():
+                    mark.visible = visible
+
+    def set_camera_mode(self, mode: str) -> None:
+        """``orbit`` (the user's camera), ``follow`` (behind the ego, moved every frame) or
+        ``top`` (looking down on the junction)."""
+        camera_pose(mode, (0.0, 0.0), 0.0, self.scene_size_m)  # checks the mode
+        with self._lock:
+            self.camera_mode = mode
+            self._place_cameras()
+
+    def _cameras(self) -> list[Any]:
+        """The camera of each tab this viewer draws for (a client's own, or every client's)."""
+        if hasattr(self.target, "get_clients"):
+            return [c.camera for c in self.target.get_clients().values()]
+        camera = getattr(self.target, "camera", None)
+        return [] if camera is None else [camera]
+
+    def _place_cameras(self) -> None:
+        x, y, heading = self._ego_pose or (0.0, 0.0, 0.0)
+        pose = camera_pose(self.camera_mode, (x, y), heading, self.scene_size_m)
+        if pose is None:
+            return
+        position, look_at = pose
+        for camera in self._cameras():
+            try:
+                camera.position = position
+                camera.look_at = look_at
+                camera.up_direction = (0.0, 0.0, 1.0)
+            except Exception:  # noqa: BLE001 - a tab whose camera is not known yet (or gone)
+                pass
+
+    def show_collision_spot(self, xy: Sequence[float] | None, text: str = "", visible: bool = True) -> None:
+        """Mark where the ego collided (network frame ``xy``, a red translucent sphere with a
+        label), or remove the mark (None)."""
+        with self._lock, self.target.atomic():
+            if self.collision_spot is not None:
+                self.collision_spot.remove()
+                self.collision_spot = None
+            if xy is None:
+                return
+            pos = self._xyz(np.array([float(xy[0]), float(xy[1])]))
+            self.collision_spot = self.target.scene.add_icosphere(
+                "/collision", radius=2.2, color=COLLISION_SPOT, opacity=0.35, subdivisions=2,
+                position=(float(pos[0]), float(pos[1]), 1.0), visible=visible)
+            self.target.scene.add_label("/collision/label", text, position=(0.0, 0.0, 2.6),
+                                        anchor="bottom-center")
 
     # --- candidates ---------------------------------------------------------------------------------
 
@@ -273,6 +358,9 @@ class Viewer:
         self.ego.position = (float(pos[0]), float(pos[1]), 0.0)
         self.ego.wxyz = yaw_wxyz(phi)
         self.ego.visible = True
+        self._ego_pose = (float(pos[0]), float(pos[1]), phi)
+        if self.camera_mode != "orbit":
+            self._place_cameras()
         signal = frame.get("signal", {})
         self.hud.text = (f"t {float(frame.get('t', 0.0)):.1f} s · {math.hypot(vx, vy):.1f} m/s · "
                          f"{frame.get('speed_mode', 'none')} · {signal.get('light', '?')}"
@@ -345,7 +433,7 @@ class Viewer:
         elif mark is None:
             self._marks[pid] = self.target.scene.add_label(
                 f"/actors/{node_name(pid)}/abnormal", text, position=(0.0, 0.0, height),
-                anchor="bottom-center")
+                anchor="bottom-center", visible=self.layers["labels"])
             self._mark_text[pid] = text
         elif self._mark_text.get(pid) != text:
             mark.text = text
@@ -370,6 +458,7 @@ class Viewer:
             for handle in self._paths:
                 handle.remove()
             self._paths = []
+            self.show_collision_spot(None)
             for name in ("/junction", "/ego", "/ego_trail", "/paths", "/actors"):
                 try:
                     self.target.scene.remove_by_name(name)

@@ -1,15 +1,18 @@
-"""Batches: start (202; it runs in the background), list, read with progress and summary,
-cancel, progress as Server-Sent Events, and the episodes of a batch."""
+"""Batches: start (202; it runs in the background), list, read with progress (elapsed time, rate,
+ETA) and summary, cancel, resume an interrupted one, progress as Server-Sent Events, and the
+episodes of a batch."""
 
 from __future__ import annotations
 
 import asyncio
 import json
 from collections.abc import AsyncIterator
+from datetime import UTC, datetime
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response, status
 from fastapi.responses import StreamingResponse
+from sqlalchemy import func, select
 from sqlalchemy.orm import Session
 
 from crossroads.api.deps import (
@@ -38,7 +41,7 @@ from crossroads.scenario.network_checks import batch_warnings
 from crossroads.scenario.spec import MAX_RUNS
 from crossroads.store import Store, crud
 from crossroads.store.crud import FINISHED_STATUSES
-from crossroads.store.tables import BATCH_STATUSES, EPISODE_OUTCOMES, MAX_ROW_ID, Batch
+from crossroads.store.tables import BATCH_STATUSES, EPISODE_OUTCOMES, MAX_ROW_ID, Batch, Episode
 
 router = APIRouter(prefix="/batches", tags=["batches"])
 
@@ -53,18 +56,53 @@ def _get(session: Session, batch_id: int) -> Batch:
     return batch
 
 
-def _progress(batch: Batch, recorded: int, passed: int, errors: int, jobs: JobRegistry) -> BatchProgress:
+ENDED = (*FINISHED_STATUSES, "interrupted")  # no runner goes on with these by itself
+
+
+def _aware(moment: datetime | None) -> datetime | None:
+    """A stored time as UTC (SQLite gives them back without their zone)."""
+    return None if moment is None or moment.tzinfo is not None else moment.replace(tzinfo=UTC)
+
+
+def _timing(session: Session, batch: Batch, done: int) -> dict[str, Any]:
+    """Elapsed time, rate and ETA of a batch, from the store alone (so they survive a reload and a
+    restart): the runs recorded since it last started, over the time since then."""
+    started = _aware(batch.started_at)
+    if started is None or batch.status == "queued":
+        return {}
+    if batch.status == "running":
+        end = datetime.now(UTC)
+    elif batch.status == "interrupted":
+        end = _aware(batch.heartbeat_at) or _aware(batch.finished_at)
+    else:
+        end = _aware(batch.finished_at)
+    if end is None:
+        return {}
+    elapsed = max(0.0, (end - started).total_seconds())
+    since = session.scalar(select(func.count(Episode.id)).where(
+        Episode.batch_id == batch.id, Episode.created_at >= batch.started_at)) or 0
+    rate = since / elapsed * 60.0 if since and elapsed > 0 else None
+    eta = None
+    if batch.status == "running" and rate:
+        eta = round(max(0, batch.runs - done) / rate * 60.0)
+    return {"elapsed_s": float(round(elapsed)), "since_start": since,
+            "rate_per_min": None if rate is None else round(rate, 2),
+            "eta_s": None if eta is None else float(eta)}
+
+
+def _progress(session: Session, batch: Batch, recorded: int, passed: int, errors: int,
+              jobs: JobRegistry) -> BatchProgress:
     live = jobs.live_progress(batch.id)
     if live is not None and live.total:
         recorded, passed, errors = live.done, live.passed, live.errors
     total = batch.runs
     return BatchProgress(done=recorded, total=total, passed=passed, errors=errors,
-                         fraction=recorded / total if total else 1.0)
+                         fraction=recorded / total if total else 1.0, **_timing(session, batch, recorded))
 
 
 def _public(session: Session, batch: Batch, jobs: JobRegistry, summary: BatchSummary | None = None) -> BatchPublic:
     counts = crud.outcome_counts(session=session, batch_id=batch.id)
-    progress = _progress(batch, sum(counts.values()), counts.get("passed", 0), counts.get("error", 0), jobs)
+    progress = _progress(session, batch, sum(counts.values()), counts.get("passed", 0), counts.get("error", 0), jobs)
     return BatchPublic(
         id=batch.id, scenario_id=batch.scenario_id, scenario=batch.scenario.name, policy=batch.policy.name,
         status=batch.status, runs=batch.runs, traces=batch.traces, workers=batch.workers,
@@ -158,6 +196,22 @@ def cancel_batch(batch_id: BatchId, session: SessionDep, jobs: JobsDep) -> dict[
     return {"id": batch_id, "status": "cancelled"}
 
 
+@router.post("/{batch_id}/resume", status_code=status.HTTP_202_ACCEPTED)
+def resume_batch(batch_id: BatchId, session: SessionDep, jobs: JobsDep) -> BatchAccepted:
+    """Go on with an ``interrupted`` batch (the server stopped while it ran or waited): it is
+    queued again and runs what is left; the runs already recorded are kept, never run again.
+    409 for a batch in any other state."""
+    batch = _get(session, batch_id)
+    if batch.status != "interrupted":
+        raise HTTPException(status_code=409, detail=f"batch {batch_id} is {batch.status}: only an "
+                                                    "interrupted batch can be resumed")
+    jobs.resume(batch_id, workers=batch.workers)
+    session.refresh(batch)
+    return BatchAccepted(id=batch_id, status=batch.status, url=f"/api/batches/{batch_id}",
+                         events=f"/api/batches/{batch_id}/events",
+                         queue_position=jobs.queue_position(batch_id), warnings=list(batch.warnings or []))
+
+
 def _sse(event: str, data: dict[str, Any]) -> str:
     return f"event: {event}\ndata: {json.dumps(data, separators=(',', ':'))}\n\n"
 
@@ -167,7 +221,7 @@ def _snapshot(store: Store, batch_id: int, jobs: JobRegistry) -> tuple[dict[str,
     with store.session() as session:
         batch = _get(session, batch_id)
         public = _public(session, batch, jobs)
-        ended = batch.status in FINISHED_STATUSES and jobs.live_progress(batch_id) is None
+        ended = batch.status in ENDED and jobs.live_progress(batch_id) is None
     return {"id": batch_id, "status": public.status, "queue_position": public.queue_position,
             "warnings": public.warnings, **public.progress.model_dump()}, ended
 
@@ -176,8 +230,9 @@ def _snapshot(store: Store, batch_id: int, jobs: JobRegistry) -> tuple[dict[str,
             responses={200: {"content": {"text/event-stream": {}},
                              "description": "`progress` events, then one `end` event with the summary"}})
 async def batch_events(batch_id: BatchId, request: Request, store: StoreDep, jobs: JobsDep) -> StreamingResponse:
-    """Server-Sent Events: a ``progress`` event whenever the batch moves, then ``end`` (its
-    status, warnings and summary) when it has finished; the stream then closes. Both carry the
+    """Server-Sent Events: a ``progress`` event whenever the batch moves (its elapsed time, rate
+    and ETA too, to the second), then ``end`` (its status, warnings and summary) when it has
+    finished or was interrupted; the stream then closes. Both carry the
     batch's stored ``warnings``, so a client that only follows the stream still sees them."""
     first = await asyncio.to_thread(_snapshot, store, batch_id, jobs)  # a 404 comes before the stream
 

@@ -3,12 +3,17 @@ follow its progress, browse its failures (parameters, distance from nominal, 3D 
 minimal episode), save one as a regression scenario, read its report.
 
 A search runs in this process (:class:`~crossroads.search.engine.SearchRunner` in a thread; its
-episodes in worker processes or on Ray, as batches do), at most ``MAX_RUNNING`` at once.
+episodes in worker processes or on Ray, as batches do), at most ``MAX_RUNNING`` at once. Its live
+progress carries the elapsed time since it (re)started here, the rate of search episodes and the
+ETA of the search phase. A search the server stopped (a shutdown cancels it, recording why) or
+left unfinished (the process was killed) reads ``state: interrupted``; POST /searches/{id}/resume
+goes on with it from the store.
 """
 
 from __future__ import annotations
 
 import threading
+import time
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, HTTPException, Path, Request, status
@@ -59,6 +64,12 @@ class _Running:
     def __init__(self) -> None:
         self.lock = threading.Lock()
         self.runners: dict[int, SearchRunner] = {}
+        self.started: dict[int, tuple[float, int | None]] = {}  # wall time, search episodes then
+
+    def add(self, search_id: int, runner: SearchRunner) -> None:
+        with self.lock:
+            self.runners[search_id] = runner
+            self.started[search_id] = (time.time(), None)  # the count: from its first progress
 
     def live(self, search_id: int) -> SearchRunner | None:
         with self.lock:
@@ -92,6 +103,44 @@ def stop_all(app: Any, timeout_s: float = 10.0) -> None:
             runner.wait(timeout_s)
         except BaseException:  # noqa: BLE001 - it failed or was cancelled: nothing to wait for
             pass
+        try:
+            with runner.store.session() as session:
+                row = records.get_search(session=session, search_id=runner.search_id)
+                if row is not None and row.status == "cancelled" and row.error is None:
+                    records.set_search_status(session=session, search_id=row.id, status="cancelled",
+                                              error=INTERRUPTED)
+        except Exception:  # noqa: BLE001 - the store went first: it reads cancelled
+            pass
+
+
+INTERRUPTED = "interrupted: the server stopped while the search ran; resume it"
+
+
+def _state(status: str, error: str | None, live: bool) -> str:
+    """What the studio shows: the stored status, except ``interrupted`` for a search the server
+    stopped or left unfinished (status queued or running with no runner in this process)."""
+    if live:
+        return "running"
+    if status in ("queued", "running") or (status == "cancelled" and error == INTERRUPTED):
+        return "interrupted"
+    return status
+
+
+def _timing(registry: _Running, search_id: int, progress: dict[str, Any]) -> dict[str, Any]:
+    """Elapsed time since the search (re)started here, its rate of search episodes and the ETA
+    of the search phase (the shrinking's length is not known in advance)."""
+    with registry.lock:
+        began, at_start = registry.started.get(search_id, (time.time(), None))
+        if at_start is None:
+            at_start = int(progress["searched"])
+            registry.started[search_id] = (began, at_start)
+    elapsed = max(0.0, time.time() - began)
+    since = int(progress["searched"]) - at_start
+    rate = since / elapsed * 60.0 if since > 0 and elapsed > 0 else None
+    left = int(progress["budget"]) - int(progress["searched"])
+    eta = round(left / rate * 60.0) if rate and progress.get("phase") == "search" else None
+    return {"elapsed_s": float(round(elapsed)), "rate_per_min": None if rate is None else round(rate, 2),
+            "eta_s": None if eta is None else float(eta)}
 
 
 def _get(session: Any, search_id: int) -> Search:
@@ -104,7 +153,12 @@ def _get(session: Any, search_id: int) -> Search:
 def _public(store: Store, search_id: int, registry: _Running) -> dict[str, Any]:
     summary = summarize_search(store, search_id)
     runner = registry.live(search_id)
-    summary["progress"] = None if runner is None else runner.progress.to_json()
+    progress = None
+    if runner is not None:
+        progress = runner.progress.to_json()
+        progress.update(_timing(registry, search_id, progress))
+    summary["progress"] = progress
+    summary["state"] = _state(summary["status"], summary["error"], runner is not None)
     summary.pop("failure_list")
     return summary
 
@@ -146,8 +200,30 @@ def start_search(body: SearchCreate, request: Request, session: SessionDep, stor
                                   shrink_steps=body.shrink_steps)
     runner = SearchRunner(store, search_id, workers=workers, ray_address=settings.ray_address,
                           data_dir=settings.data_dir)
-    with registry.lock:
-        registry.runners[search_id] = runner
+    registry.add(search_id, runner)
+    runner.start()
+    return {"id": search_id, "status": "running", "url": f"/api/searches/{search_id}"}
+
+
+@router.post("/{search_id}/resume", status_code=status.HTTP_202_ACCEPTED)
+def resume_search(search_id: SearchId, request: Request, session: SessionDep, store: StoreDep,
+                  settings: SettingsDep) -> dict[str, Any]:
+    """Go on with an interrupted or cancelled search from the store (the episodes recorded are
+    kept; the optimiser proposes what it would have). 409 while it, or another search, runs here,
+    and for a search that is done or failed."""
+    registry = _registry(request)
+    search = _get(session, search_id)
+    if registry.live(search_id) is not None:
+        raise HTTPException(status_code=409, detail=f"search {search_id} is running already")
+    state = _state(search.status, search.error, False)
+    if state not in ("interrupted", "cancelled"):
+        raise HTTPException(status_code=409, detail=f"search {search_id} is {state}: only an interrupted "
+                                                    "or cancelled search can be resumed")
+    if registry.running() >= MAX_RUNNING:
+        raise HTTPException(status_code=409, detail="a search is running already; cancel it or wait")
+    runner = SearchRunner(store, search_id, workers=search.workers or settings.max_batch_workers,
+                          ray_address=settings.ray_address, data_dir=settings.data_dir)
+    registry.add(search_id, runner)
     runner.start()
     return {"id": search_id, "status": "running", "url": f"/api/searches/{search_id}"}
 
@@ -161,8 +237,9 @@ def list_searches(request: Request, session: SessionDep, store: StoreDep) -> lis
 
 @router.get("/{search_id}")
 def get_search(search_id: SearchId, request: Request, session: SessionDep, store: StoreDep) -> dict[str, Any]:
-    """A search: its figures (episodes, failing ones, failures kept, best objective) and, while
-    it runs here, its live progress (phase, episodes, failures so far)."""
+    """A search: its figures (episodes, failing ones, failures kept, best objective), ``state``
+    (its status, or ``interrupted``) and, while it runs here, its live progress (phase, episodes,
+    failures so far, elapsed time, rate and ETA)."""
     _get(session, search_id)
     return _public(store, search_id, _registry(request))
 

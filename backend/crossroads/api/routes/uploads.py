@@ -32,10 +32,19 @@ from crossroads.api.body_limit import reads_own_body
 from crossroads.api.deps import OptionsDep, SettingsDep
 from crossroads.api.params import Page, paging
 from crossroads.scenario.network_checks import program_json, uploaded_name
-from crossroads.api.routes.intersections import geometry_with_program, internal_lanes_of, paths_of, signal_links
+from crossroads.api.routes.intersections import (
+    JunctionId,
+    choices_of,
+    geometry_with_program,
+    internal_lanes_of,
+    junction_of,
+    paths_of,
+    signal_links,
+)
 from crossroads.constants import RHO_BEZIER
 from crossroads.network.export import junction_geometry
 from crossroads.network.junction import JunctionError, read_junction
+from crossroads.network.model import Junction
 from crossroads.intersections.resolve import open_junction
 
 router = APIRouter(prefix="/intersections", tags=["intersections"])
@@ -163,6 +172,7 @@ def _read_and_store(data: bytes, digest: str, filename: str, target_dir: Path) -
     _write_name(target_dir, digest, filename)
     return {"name": filename, "id": digest, "net": f"{UPLOADS}/{final.name}", "size_bytes": len(data),
             "junction": junction.id, **geometry, "program": program_json(final, junction.tl_id),
+            **choices_of(open_junction(final), filename),
             "internal_lanes": {"max_m": lanes["max_m"], "warning": lanes["warning"]}}
 
 
@@ -208,30 +218,39 @@ def list_uploads(settings: SettingsDep, response: Response,
              "net": f"{UPLOADS}/{p.name}", "size_bytes": p.stat().st_size} for p in page.slice(files, response)]
 
 
+def _uploaded_junction(digest: str, data_dir: Path, junction: str | None) -> tuple[Path, str, Junction]:
+    """The stored network of ``digest``, the name it was uploaded under, and its junction
+    ``junction`` (None: the default; a 422 naming ``junction`` when it has no such one)."""
+    path = _uploaded_path(digest, data_dir)
+    name = _uploaded_name(path.parent, digest)
+    return path, name, junction_of(path, junction, name)
+
+
 @router.get("/uploads/{digest}")
-def uploaded_geometry(digest: str, settings: SettingsDep) -> dict[str, Any]:
-    """The geometry of an uploaded network (by the sha256 POST /intersections/upload gave)."""
-    path = _uploaded_path(digest, settings.data_dir)
-    junction = open_junction(path)
-    return {"name": _uploaded_name(path.parent, digest), "id": digest, "net": f"{UPLOADS}/{path.name}",
-            "size_bytes": path.stat().st_size, "junction": junction.id, **geometry_with_program(junction)}
+def uploaded_geometry(digest: str, settings: SettingsDep, junction: JunctionId = None) -> dict[str, Any]:
+    """The geometry of an uploaded network (by the sha256 POST /intersections/upload gave): of its
+    default junction, or of ``junction`` (one of the answer's ``junctions``)."""
+    path, name, chosen = _uploaded_junction(digest, settings.data_dir, junction)
+    return {"name": name, "id": digest, "net": f"{UPLOADS}/{path.name}",
+            "size_bytes": path.stat().st_size, "junction": chosen.id, **geometry_with_program(chosen, name)}
 
 
 @router.get("/uploads/{digest}/internal-lanes")
-def uploaded_internal_lanes(digest: str, settings: SettingsDep) -> dict[str, Any]:
+def uploaded_internal_lanes(digest: str, settings: SettingsDep, junction: JunctionId = None) -> dict[str, Any]:
     """How far SUMO's internal lanes of an uploaded network run from the candidate paths."""
-    path = _uploaded_path(digest, settings.data_dir)
-    return internal_lanes_of(open_junction(path), _uploaded_name(path.parent, digest))
+    _, name, chosen = _uploaded_junction(digest, settings.data_dir, junction)
+    return internal_lanes_of(chosen, name)
 
 
 @router.get("/uploads/{digest}/paths")
 def uploaded_paths(
     digest: str, settings: SettingsDep,
     task: Literal["left", "straight", "right"],
+    junction: JunctionId = None,
     approach: Annotated[str | None, Query(max_length=200, description="incoming edge id; default: from the south")] = None,
     rho: Annotated[float | None, Query(gt=0.0, lt=1.0, description=(
         f"ρ of the Bezier construction for every path (the paper: {RHO_BEZIER}); default: chosen "
         "per path within the ego's steering limit"))] = None,
 ) -> list[dict[str, Any]]:
     """The candidate paths of a task on an uploaded network."""
-    return paths_of(open_junction(_uploaded_path(digest, settings.data_dir)), task, approach, rho)
+    return paths_of(_uploaded_junction(digest, settings.data_dir, junction)[2], task, approach, rho)
