@@ -29,14 +29,15 @@ export function loadDraft(): Draft | null {
 }
 
 /** Put the draft's values of ``names`` (all of them when omitted) back into the form; a select
- *  keeps its value when the draft's is no longer one of its options (e.g. a deleted upload). */
+ *  keeps its value when the draft's is no longer one of its options (e.g. a deleted upload), or
+ *  one it offers disabled (a task without a path from the approach). */
 export function applyDraft(draft: Draft, names?: string[]): void {
   for (const [name, value] of Object.entries(draft)) {
     if (names && !names.includes(name)) continue;
     const el = field(name) as HTMLInputElement | HTMLSelectElement | null;
     if (!el) continue;
     if (el instanceof HTMLSelectElement) {
-      if (Array.from(el.options).some((o) => o.value === value)) el.value = String(value);
+      if (Array.from(el.options).some((o) => o.value === value && !o.disabled)) el.value = String(value);
     } else if (el.type === "checkbox") {
       el.checked = Boolean(value);
     } else {
@@ -52,7 +53,8 @@ export function specToDraft(spec: Record<string, any>, source: string): Draft { 
   const over = spec.abnormal?.overspeed;
   const round = spec.abnormal?.rounding;
   const draft: Draft = {
-    name: text(spec.name), intersection: source, task: text(spec.task), approach: text(spec.approach),
+    name: text(spec.name), intersection: source, "intersection.junction": text(spec.intersection?.junction),
+    task: text(spec.task), approach: text(spec.approach),
     "ego.entrance_lane": text(spec.ego?.entrance_lane), "ego.start_distance_m": text(spec.ego?.start_distance_m),
     "ego.start_speed_mps": text(spec.ego?.start_speed_mps),
     "lights.phase": text(spec.lights?.phase), "lights.elapsed_s": text(spec.lights?.elapsed_s ?? 0),

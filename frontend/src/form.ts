@@ -1,6 +1,6 @@
 // The scenario form: its fields, the scenario it describes, and errors shown next to their fields.
 import { $, ApiError, Json } from "./api";
-import { currentSource } from "./intersections";
+import { currentSource, sourceRef } from "./intersections";
 
 export const form = $<HTMLFormElement>("#scenario-form");
 export const field = (name: string) => form.elements.namedItem(name) as HTMLInputElement | HTMLSelectElement;
@@ -29,10 +29,11 @@ export function scenarioBody(): Json {
     const v = field(`ego.${key}`).value;
     if (v !== "") ego[key] = key === "entrance_lane" ? v : Number(v);
   }
+  const source = currentSource();
   const body: Json = {
     version: 1,
     name: field("name").value,
-    intersection: currentSource()?.ref ?? field("intersection").value,
+    intersection: source ? sourceRef(source) : field("intersection").value,
     task: field("task").value,
     ego,
     lights: { phase: intOrRaw("lights.phase"), elapsed_s: num("lights.elapsed_s") },
@@ -57,6 +58,17 @@ export function clearErrors(root: ParentNode = form, general = $("#form-error"))
   root.querySelectorAll(".field-error").forEach((e) => e.remove());
   root.querySelectorAll(".invalid").forEach((e) => e.classList.remove("invalid"));
   general.textContent = "";
+}
+
+/** Remove the errors shown for ``locs`` (and inside them): fields whose choices were refilled. */
+export function clearFieldErrors(locs: string[]): void {
+  for (const loc of locs) {
+    form.querySelectorAll<HTMLElement>(".field-error").forEach((e) => {
+      if (e.dataset.for === loc || e.dataset.for?.startsWith(`${loc}.`)) e.remove();
+    });
+    form.querySelectorAll(`[data-field="${CSS.escape(loc)}"], [data-field^="${CSS.escape(loc)}."]`)
+      .forEach((e) => e.classList.remove("invalid"));
+  }
 }
 
 /** The field an error location names: itself, else its nearest named parent

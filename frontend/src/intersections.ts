@@ -12,10 +12,22 @@ export interface Source {
 }
 
 const sources = new Map<string, Source>();
-const geometries = new Map<string, Json>();
+const geometries = new Map<string, Json>(); // by `${source key}|${junction id}` ("" for the default)
 const select = () => $<HTMLSelectElement>("select[name=intersection]");
+const junctionSelect = () => $<HTMLSelectElement>('select[name="intersection.junction"]');
+const junctionField = () => $("#junction-field");
 
 export const currentSource = (): Source | undefined => sources.get(select().value);
+
+/** The picked junction's id, or "" for the network's default (a network with one junction, or a
+ *  catalogue name: its ``intersection`` names no junction). */
+export const chosenJunction = (): string => (junctionField().hidden ? "" : junctionSelect().value);
+
+/** What the scenario's ``intersection`` says: the source's reference, with the picked junction. */
+export function sourceRef(source: Source): Json {
+  const junction = chosenJunction();
+  return junction && typeof source.ref === "object" ? { ...source.ref, junction } : source.ref;
+}
 
 /** The select's value for a scenario's ``intersection`` (a catalogue name or ``{net}``), if offered. */
 export function sourceKeyOf(ref: Json): string | undefined {
@@ -61,16 +73,25 @@ export function addUpload(u: Json): Source {
     opt.textContent = source.label;
     group.append(opt);
   }
-  geometries.set(source.key, u);
+  remember(source, "", u);
   select().value = source.key;
   return source;
 }
 
-export async function geometryOf(source: Source): Promise<Json> {
-  let geo = geometries.get(source.key);
+/** Keep a geometry under the junction asked for and under its own id (the default's is both). */
+function remember(source: Source, junction: string, geo: Json): void {
+  geometries.set(`${source.key}|${junction}`, geo);
+  if (geo.junction_id) geometries.set(`${source.key}|${geo.junction_id}`, geo);
+}
+
+const junctionQuery = (junction: string): string => (junction ? `?${new URLSearchParams({ junction })}` : "");
+
+/** The geometry of the source's picked junction (``junction``: another one, "" the default). */
+export async function geometryOf(source: Source, junction: string = chosenJunction()): Promise<Json> {
+  let geo = geometries.get(`${source.key}|${junction}`);
   if (!geo) {
-    geo = await api(source.base);
-    geometries.set(source.key, geo);
+    geo = await api(source.base + junctionQuery(junction));
+    remember(source, junction, geo);
   }
   return geo;
 }
@@ -78,7 +99,33 @@ export async function geometryOf(source: Source): Promise<Json> {
 export function pathsUrl(source: Source, task: string, approach: string): string {
   const q = new URLSearchParams({ task });
   if (approach) q.set("approach", approach);
+  const junction = chosenJunction();
+  if (junction) q.set("junction", junction);
   return `${source.base}/paths?${q}`;
+}
+
+/** The junction picker: shown for an uploaded network with more than one signalised junction,
+ *  each with its approaches; one the reader cannot use is listed, disabled, with the reason. */
+export function fillJunctions(source: Source, geo: Json): void {
+  const junctions = (geo.junctions ?? []) as Json[];
+  const sel = junctionSelect();
+  const before = sel.value;
+  const shown = typeof source.ref === "object" && junctions.length > 1;
+  junctionField().hidden = !shown;
+  sel.innerHTML = junctions.map((j) => {
+    const text = j.readable
+      ? `${j.id}${j.default ? " (default)" : ""} · ${j.approaches} approaches${j.tl_id !== j.id ? ` · light ${j.tl_id}` : ""}`
+      : `${j.id} · cannot be used`;
+    return `<option value="${esc(j.id)}"${j.readable ? "" : " disabled"} title="${esc(j.reason ?? "")}">${esc(text)}</option>`;
+  }).join("");
+  const usable = junctions.filter((j) => j.readable).map((j) => j.id as string);
+  sel.value = usable.includes(before) ? before : (junctions.find((j) => j.default)?.id ?? usable[0] ?? "");
+  const more = Number(geo.junctions_not_listed ?? 0);
+  const unusable = junctions.length - usable.length;
+  $("#junction-hint").textContent = !shown ? ""
+    : `${usable.length} signalised junction(s)`
+      + (unusable ? `; ${unusable} traffic light(s) that are no intersection (hover for why)` : "")
+      + (more ? `; ${more} further traffic light(s) not listed` : "");
 }
 
 // --- choices that depend on the network --------------------------------------------------------------
@@ -91,11 +138,23 @@ function setOptions(sel: HTMLSelectElement, options: [string, string][], keep = 
   if (keep && options.some(([v]) => v === before)) sel.value = before;
 }
 
-/** The approach select: the default (from the south) and every approach of the junction. */
+/** Per approach, the tasks with a candidate path (the API's ``tasks``). */
+const tasksOf = (geo: Json, approach: string): string[] => (geo.tasks?.[approach] ?? ["left", "straight", "right"]) as string[];
+
+/** The approach select: the default (from the south) and every approach of the junction; one
+ *  without a candidate path for any task is listed disabled. */
 export function fillApproaches(geo: Json): void {
+  const sel = fieldOf("approach");
   const byDefault = geo.default_approach ? ` (${geo.default_approach})` : "";
-  setOptions(fieldOf("approach"), [["", `from the south${byDefault}`],
-    ...(geo.approaches as Json[]).map((a): [string, string] => [a.id, a.id])]);
+  const none = (id: string) => tasksOf(geo, id).length === 0;
+  const options: [string, string][] = [["", `from the south${byDefault}`],
+    ...(geo.approaches as Json[]).map((a): [string, string] => [a.id, none(a.id) ? `${a.id} (no path)` : a.id])];
+  setOptions(sel, options);
+  for (const opt of Array.from(sel.options)) opt.disabled = none(opt.value || geo.default_approach);
+  if (sel.selectedOptions[0]?.disabled) {
+    const first = Array.from(sel.options).find((o) => !o.disabled);
+    if (first) sel.value = first.value;
+  }
 }
 
 /** The approach the form names, or the junction's default. */
@@ -104,12 +163,40 @@ export function chosenApproach(geo: Json): Json | undefined {
   return (geo.approaches as Json[]).find((a) => a.id === id);
 }
 
+/** The task select offers the tasks the chosen approach has a candidate path for; the others are
+ *  listed disabled. When the task chosen has none there, the first that has is chosen and the
+ *  hint beside the select says so. */
+export function fillTasks(geo: Json): void {
+  const sel = fieldOf("task");
+  const approach = chosenApproach(geo)?.id ?? "";
+  const tasks = tasksOf(geo, approach);
+  for (const opt of Array.from(sel.options)) {
+    opt.disabled = !tasks.includes(opt.value);
+    opt.textContent = opt.disabled ? `${opt.value} (no path from ${approach})` : opt.value;
+  }
+  const before = sel.value;
+  const hint = $("#task-hint");
+  if (!tasks.includes(before) && tasks.length) {
+    sel.value = tasks[0];
+    hint.textContent = `No ${before} path from approach ${approach}: task set to ${tasks[0]}.`;
+  } else {
+    hint.textContent = tasks.length ? "" : `No path from approach ${approach}.`;
+  }
+}
+
 /** The entrance-lane select: the default, then the lanes of the approach that lead the task. */
 export function fillLanes(geo: Json, task: string): void {
   const lanes = (chosenApproach(geo)?.entrance_lanes ?? []) as Json[];
   setOptions(fieldOf("ego.entrance_lane"), [["", "the first candidate path's lane"],
     ...lanes.filter((l) => (l.turns as string[]).includes(task))
       .map((l): [string, string] => [l.id, `${l.id} (${(l.turns as string[]).join(", ")})`])]);
+}
+
+/** The tasks lane ``lane`` of ``approach`` leads that have a candidate path from there. */
+export function tasksOfLane(geo: Json, approach: string, lane: string): string[] {
+  const a = (geo.approaches as Json[]).find((x) => x.id === approach);
+  const turns = ((a?.entrance_lanes as Json[] | undefined)?.find((l) => l.id === lane)?.turns ?? []) as string[];
+  return turns.filter((t) => tasksOf(geo, approach).includes(t));
 }
 
 const LIGHTS: Record<string, string> = { G: "green", g: "green", y: "yellow", Y: "yellow", u: "yellow", r: "red", R: "red", s: "red" };

@@ -3,16 +3,16 @@ import "./style.css";
 import { $, api, esc, Json, post } from "./api";
 import { cancelBatch, reattach, refreshBatches, resumeBatch, runBatch, showBatch } from "./batches";
 import { applyDraft, Draft, loadDraft, saveDraft, specToDraft } from "./draft";
-import { clearErrors, field, form, scenarioBody, showErrors } from "./form";
+import { clearErrors, clearFieldErrors, field, form, scenarioBody, showErrors } from "./form";
 import {
-  catalogueSource, currentSource, fillApproaches, fillLanes, fillPhases, geometryOf, limitElapsed,
-  setSources, sourceKeyOf, uploadSource,
+  catalogueSource, currentSource, fillApproaches, fillJunctions, fillLanes, fillPhases, fillTasks, geometryOf,
+  limitElapsed, setSources, sourceKeyOf, tasksOfLane, uploadSource,
 } from "./intersections";
 import { comparePicked, picked, pickedChanged } from "./compare";
 import { initLibrary, openStored, refreshLibrary } from "./library";
 import { startLive, stopLive } from "./live";
 import { fillPolicies, initPolicyUploads } from "./policies";
-import { drawPreview } from "./preview";
+import { drawPreview, initPreview, LanePick, resetView, showPreviewStatus } from "./preview";
 import { initSearches } from "./searches";
 import { uploadNetwork } from "./upload";
 import { initViewer } from "./viewer";
@@ -42,12 +42,14 @@ function setEditing(e: Editing | null): void {
 const isObject = (v: unknown): boolean => v != null && typeof v === "object" && !Array.isArray(v);
 
 /** The form's scenario over the one it was opened from: what the form does not show is kept;
- *  the ego's start and the abnormal traffic are the form's alone (an empty field: the default). */
+ *  the intersection (its net and junction), the ego's start and the abnormal traffic are the
+ *  form's alone (an empty field: the default). */
+const FORMS_ALONE = new Set(["intersection", "ego", "abnormal"]);
 function merged(body: Json): Json {
   if (!editing) return body;
   const out: Json = { ...editing.base };
   for (const [k, v] of Object.entries(body)) {
-    out[k] = k !== "ego" && k !== "abnormal" && isObject(v) && isObject(out[k]) ? { ...out[k], ...(v as Json) } : v;
+    out[k] = !FORMS_ALONE.has(k) && isObject(v) && isObject(out[k]) ? { ...out[k], ...(v as Json) } : v;
   }
   if (!("approach" in body)) delete out.approach;
   return out;
@@ -106,20 +108,66 @@ function forget(): void {
   $("#save-error").textContent = "";
 }
 
-/** The choices that depend on the network, after the intersection (or approach, task, lane)
- * changed, and the preview. */
-async function networkChanged(what: "intersection" | "approach" | "task" | "lane"): Promise<void> {
+/** The choices that depend on the network, after the intersection (or junction, approach, task,
+ * lane) changed, and the preview. Each depends on the one before: the junctions on the network,
+ * the approaches on the junction, the tasks on the approach (those with a candidate path), the
+ * lanes on the task. */
+async function networkChanged(what: "intersection" | "junction" | "approach" | "task" | "lane"): Promise<void> {
   const source = currentSource();
   if (!source) return;
   $("#intersection-description").textContent = source.description;
+  if (what === "intersection" || what === "junction") {
+    resetView();
+    showPreviewStatus("");
+    // what was said of the network's choices no longer holds: they are refilled below
+    clearFieldErrors(["intersection", "approach", "task", "ego.entrance_lane"]);
+  }
   try {
+    if (what === "intersection") fillJunctions(source, await geometryOf(source, ""));
     const geo = await geometryOf(source);
-    if (what === "intersection") fillApproaches(geo);
+    if (what === "intersection" || what === "junction") fillApproaches(geo);
+    if (what !== "task" && what !== "lane") fillTasks(geo);
+    if (what === "task") $("#task-hint").textContent = ""; // only tasks with a path can be picked
     if (what !== "lane") fillLanes(geo, field("task").value);
     fillPhases(geo, field("task").value); // the ego's light in each phase depends on all of them
   } catch (e) {
     showErrors(e);
   }
+  await drawPreview();
+}
+
+/** A click on an entrance lane in the preview: that approach, lane and start distance go into the
+ *  form (the task too, when the lane does not lead the one chosen), and the page says what was set. */
+async function placeStart(pick: LanePick): Promise<void> {
+  const source = currentSource();
+  if (!source) return;
+  const geo = await geometryOf(source);
+  const tasks = tasksOfLane(geo, pick.approach, pick.lane);
+  if (!tasks.length) {
+    showPreviewStatus(`Lane ${pick.lane} leads ${pick.turns.join(", ") || "nowhere"}, with no candidate path `
+      + `from approach ${pick.approach}: nothing set.`);
+    return;
+  }
+  const approach = field("approach");
+  if ((approach.value || geo.default_approach) !== pick.approach) approach.value = pick.approach;
+  const task = field("task");
+  const taskChanged = !tasks.includes(task.value);
+  if (taskChanged) task.value = tasks[0];
+  fillTasks(geo);
+  fillLanes(geo, task.value);
+  field("ego.entrance_lane").value = pick.lane;
+  field("ego.start_distance_m").value = String(pick.distance);
+  fillPhases(geo, task.value);
+  forget();
+  saveDraft();
+  for (const name of ["approach", "ego.entrance_lane", "ego.start_distance_m", ...(taskChanged ? ["task"] : [])]) {
+    const el = field(name);
+    el.classList.remove("just-set");
+    void el.getBoundingClientRect(); // restart the highlight
+    el.classList.add("just-set");
+  }
+  showPreviewStatus(`Set from the click: approach ${pick.approach}, entrance lane ${pick.lane}, start ${pick.distance} m `
+    + `before the stop line` + (taskChanged ? `; task ${task.value} (the lane leads ${pick.turns.join(", ")})` : "") + ".");
   await drawPreview();
 }
 
@@ -136,6 +184,7 @@ async function egoDefaults(): Promise<void> {
 
 function wire(): void {
   field("intersection").addEventListener("change", () => void networkChanged("intersection"));
+  field("intersection.junction").addEventListener("change", () => void networkChanged("junction"));
   field("approach").addEventListener("change", () => void networkChanged("approach"));
   field("task").addEventListener("change", () => void networkChanged("task"));
   field("lights.phase").addEventListener("change", () => {
@@ -193,8 +242,12 @@ async function fillForm(draft: Draft | null): Promise<void> {
   if (draft) applyDraft(draft); // the network's own choices are refilled below, then set again
   await networkChanged("intersection");
   if (!draft) return;
+  applyDraft(draft, ["intersection.junction"]);
+  await networkChanged("junction");
   applyDraft(draft, ["approach"]);
   await networkChanged("approach");
+  applyDraft(draft, ["task"]);
+  await networkChanged("task");
   applyDraft(draft);
   const source = currentSource();
   if (source) limitElapsed(await geometryOf(source));
@@ -236,6 +289,7 @@ async function init(): Promise<void> {
   initPolicyUploads();
   fillPolicies(policies as Json[]);
   wire();
+  initPreview((pick) => void placeStart(pick));
   initViewer();
   initLibrary(openScenario);
   initSearches(() => scenarioId, policy);

@@ -176,7 +176,7 @@ def test_trials_on_the_pool_are_those_of_batch_workers_and_replay_with_crossroad
                                           shrink_steps=0, failures_dir=tmp_path / f"failures-{executor}")
             summary = SearchRunner(store, search_id, workers=workers, data_dir=tmp_path / "data",
                                    executor=executor).run()
-            assert summary["status"] == "done" and summary["searched"] == 6
+            assert summary["status"] == "done" and summary["searched"] == 6, summary
             ids[executor] = search_id
             with store.session() as session:
                 rows = records.trials(session=session, search_id=search_id, kind="search")

@@ -1,4 +1,5 @@
-"""Pedestrians stop rather than walk into a standing ego: the geometry, and the rule in SUMO."""
+"""Pedestrians and cyclists stop rather than walk or ride into a standing ego: the geometry, the
+standoff, and the rule in SUMO."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import numpy as np
 import pytest
 
 from crossroads.intersections import catalogue
-from crossroads.sim.courtesy import Courtesy, Movers, walking_into
+from crossroads.sim.courtesy import CYCLIST_STANDOFF_S, Courtesy, Movers, cyclist_reach, riding_into, walking_into
 from crossroads.sim.sumo import SumoSession
 from crossroads.sim.traffic import VTYPES_XML
 
@@ -33,9 +34,29 @@ def test_already_touching_is_the_judges_business() -> None:
     assert not _into(2.0, 0.5, 0.0, 1.3)
 
 
+def test_a_cyclist_looks_as_far_as_it_needs_to_stop() -> None:
+    assert cyclist_reach(np.array([5.4]))[0] == pytest.approx(5.4 + 5.4**2 / 6.0)
+    # riding east 0.3 m right of a car standing turned 17° to the right: into its side
+    assert bool(riding_into(0.0, 0.0, -0.3, 4.8, 2.0, np.array([-6.0]), np.array([-1.6]), np.array([0.0]),
+                            np.array([5.4]))[0])
+    # the same car standing straight: it rides past
+    assert not bool(riding_into(0.0, 0.0, 0.0, 4.8, 2.0, np.array([-6.0]), np.array([-1.6]), np.array([0.0]),
+                                np.array([5.4]))[0])
+
+
 class _Recorder:
     def __init__(self) -> None:
         self.calls: list[tuple[str, str]] = []
+        self.time_s = 0.0
+
+    def set_speed(self, vid: str, speed: float) -> None:
+        self.calls.append(("hold" if speed == 0.0 else "release", vid))
+
+    def vehicle_lane(self, vid: str) -> str:
+        return ":C_20_0"
+
+    def remove(self, vid: str) -> None:
+        self.calls.append(("remove", vid))
 
     def hold_person(self, pid: str) -> None:
         self.calls.append(("hold", pid))
@@ -48,20 +69,38 @@ def _one(pid: str, y: float, speed: float) -> Movers:
     return Movers(np.array([pid]), np.array([0.0]), np.array([y]), np.array([-np.pi / 2]), np.array([speed]))
 
 
-def _update(rule: Courtesy, session: _Recorder, ego_speed: float) -> None:
-    rule.update(session, _one("p", 2.0, 1.3), (0.0, 0.0, 0.0, ego_speed, 4.8, 2.0))  # type: ignore[arg-type]
+NOBODY = Movers(np.array([]), np.array([]), np.array([]), np.array([]), np.array([]))
 
 
-def test_held_while_the_ego_stands_and_released_when_it_drives() -> None:
+def _update(rule: Courtesy, session: _Recorder, ego_speed: float, *, cyclist: bool = False) -> list:
+    mover = _one("b" if cyclist else "p", 2.0, 1.3)
+    return rule.update(session, NOBODY if cyclist else mover, mover if cyclist else NOBODY,  # type: ignore[arg-type]
+                       (0.0, 0.0, 0.0, ego_speed, 4.8, 2.0))
+
+
+@pytest.mark.parametrize("cyclist", [False, True])
+def test_held_while_the_ego_stands_and_released_when_it_drives(cyclist: bool) -> None:
     rule, session = Courtesy(), _Recorder()
-    who = "p"
-    _update(rule, session, 0.0)
-    _update(rule, session, 0.0)  # still held: no second call
+    who = "b" if cyclist else "p"
+    _update(rule, session, 0.0, cyclist=cyclist)
+    _update(rule, session, 0.0, cyclist=cyclist)  # still held: no second call
     assert session.calls == [("hold", who)]
     assert rule.may_act(5.0)  # someone is held: the rule must look even at speed
-    _update(rule, session, 5.0)
+    _update(rule, session, 5.0, cyclist=cyclist)
     assert session.calls == [("hold", who), ("release", who)]
-    assert not rule.held_pedestrians and not rule.may_act(5.0)
+    assert not rule.held_pedestrians and not rule.held_cyclists and not rule.may_act(5.0)
+
+
+def test_a_cyclist_held_too_long_goes_round_the_car() -> None:
+    rule, session = Courtesy(), _Recorder()
+    assert _update(rule, session, 0.0, cyclist=True) == []
+    session.time_s = CYCLIST_STANDOFF_S - 0.5
+    assert _update(rule, session, 0.0, cyclist=True) == []
+    session.time_s = CYCLIST_STANDOFF_S
+    (removal,) = _update(rule, session, 0.0, cyclist=True)
+    assert removal.participant == "b" and removal.stood_s == pytest.approx(CYCLIST_STANDOFF_S)
+    assert session.calls == [("hold", "b"), ("remove", "b")] and not rule.held_cyclists
+    assert removal.to_event(3.0)["event"] == "gridlock_removed"
 
 
 def test_off_means_off() -> None:

@@ -42,7 +42,7 @@ from crossroads.gym.observation import (
     observation_space,
     state_width,
 )
-from crossroads.gym.reward import RewardConfig, step_reward
+from crossroads.gym.reward import RewardConfig, reward_parts, step_reward
 from crossroads.scenario.spec import (
     ScenarioSpec,
     load_scenario,
@@ -139,7 +139,8 @@ class CrossroadsEnv(gym.Env[Any, np.ndarray]):
         if self._done or self._view is None:
             raise RuntimeError("the episode has ended (or not started): call reset() first")
         action = np.asarray(action, dtype=np.float64).reshape(-1)
-        if len(action) != 2 or not all(map(math.isfinite, action.tolist())):
+        values = action.tolist()
+        if len(values) != 2 or not (math.isfinite(values[0]) and math.isfinite(values[1])):
             raise ValueError(f"action must be 2 finite numbers [Δδ rad/s, Δa m/s³], got {action!r}")
         before = self._view
         try:
@@ -154,7 +155,7 @@ class CrossroadsEnv(gym.Env[Any, np.ndarray]):
                      "detail": str(exc)})
         self._view = idc_view(self.observation, self.preview, self.path_choice)
         kind = None if outcome is None else outcome.kind
-        parts = step_reward(self.reward_config, before.state, action, self._view.state, kind)
+        parts = reward_parts(self.reward_config, before.state, values[0], values[1], self._view.state, kind)
         info: dict[str, Any] = {
             "outcome": kind, "travel_time_s": None, "time_s": round(self.observation.time_s, 3),
             "seed": self.episode_seed, "path": self._view.path, "speed_mode": self._view.speed_mode,

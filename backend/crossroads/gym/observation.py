@@ -102,5 +102,5 @@ def idc_view(obs: Observation, preview: bool, path: PathChoice) -> IdcView:
         speed_mps=float(obs.ego[2]), yellow_remaining_s=obs.light.remaining_s)
     others = select_others(obs.ego, obs.perceived.observations, obs.perceived.kinds)
     states = build_states(obs.ego, others, obs.candidates, mode, preview)
-    index = int(np.argmin(np.hypot(states[:, DX], states[:, DY]))) if path == "nearest" else int(path)
+    index = int(np.hypot(states[:, DX], states[:, DY]).argmin()) if path == "nearest" else int(path)
     return IdcView(states, index, mode)

@@ -193,10 +193,17 @@ def step_reward(config: RewardConfig, state: np.ndarray, action: np.ndarray, nex
     """The reward of one step (module docstring); ``state``/``next_state`` of the tracked path (in
     float64: other dtypes are converted first)."""
     steer, jerk = np.asarray(action, dtype=np.float64).reshape(2).tolist()
+    return reward_parts(config, np.asarray(state, dtype=np.float64), steer, jerk,
+                        np.asarray(next_state, dtype=np.float64), outcome)
+
+
+def reward_parts(config: RewardConfig, state: np.ndarray, steer: float, jerk: float, next_state: np.ndarray,
+                 outcome: str | None) -> RewardParts:
+    """:func:`step_reward` of float64 states and the action's two numbers (the environment's step)."""
     # np.clip's min(max(x, lo), hi), on the two floats
     applied = (min(max(steer, -STEER_RATE_MAX), STEER_RATE_MAX), min(max(jerk, -JERK_MAX), JERK_MAX))
-    l_value = step_utility(np.asarray(state, dtype=np.float64), applied)
-    nxt = np.asarray(next_state, dtype=np.float64)[:STATE_DIM]
+    l_value = step_utility(state, applied)
+    nxt = next_state[:STATE_DIM]
     values = nxt.tolist()
     phi = _safety_penalty(nxt, values) + _road_penalty(nxt, values[DY], values[DPHI])
     bonus = 0.0 if outcome is None else config.outcome_rewards[outcome]

@@ -285,8 +285,9 @@ class ScenarioSpec(BaseModel):
         "null turns this gridlock breaker off.")
     standing_ego_courtesy: bool = Field(
         default=True,
-        description="Pedestrians stop rather than walk into the ego while it stands (sim/courtesy.py); "
-        "false keeps SUMO's pedestrians, who walk their crossings whatever stands on them.")
+        description="Pedestrians and cyclists stop rather than walk or ride into the ego while it stands, "
+        "and a cyclist held 8 s goes round it (is removed, an episode event) (sim/courtesy.py); false "
+        "keeps SUMO's, who walk their crossings and ride their lanes whatever stands across them.")
     runs: int = Field(default=EVALUATION_RUNS, ge=1, le=MAX_RUNS, description="[-] Episodes per policy (paper: 200).")
     seed: int = Field(
         default=0, ge=0, le=MAX_SEED,

@@ -81,4 +81,4 @@ class WorldConfig:
     perception_noise: bool = True  # Gaussian noise of SPEC §3 on the observations
     rho: float | None = None  # ρ of the Bezier candidate paths; None: chosen per candidate
     gridlock_stand_s: float | None = DEFAULT_GRIDLOCK_STAND_S  # [s] sim/gridlock.py; None: off
-    standing_ego_courtesy: bool = True  # pedestrians stop for a standing ego (sim/courtesy.py)
+    standing_ego_courtesy: bool = True  # pedestrians and cyclists stop for a standing ego (sim/courtesy.py)

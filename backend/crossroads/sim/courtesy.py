@@ -1,24 +1,26 @@
-"""Pedestrians do not walk into a standing ego, the world's rule.
+"""Pedestrians and cyclists do not walk or ride into a standing ego, the world's rule.
 
-SUMO's pedestrians walk their crossings and walking areas whatever stands there: a car standing
-with its rear over a crossing (a left-turner at its waiting point inside the junction, a queue
-reaching back over the crosswalk) is walked into when the walk begins, and the judge counts that
-as the ego's collision. Measured with SUMO's own driver on the nominal left turn of
-``e_irregular_oblique`` (30 runs, base seed 20261206): 17 of its 20 collisions were pedestrians
-walking into the ego standing at its waiting point. No pedestrian does that; they stop, or step
-round the car.
+SUMO's pedestrians walk their crossings and walking areas whatever stands there, and its cyclists
+ride their lanes without seeing a car standing across them from another lane: a car standing with
+its rear over a crossing (a left-turner at its waiting point inside the junction), or half-way
+into its right turn over the bike lane, is walked or ridden into, and the judge counts that as the
+ego's collision. Measured (30 runs, base seed 20261206): with SUMO's own driver on the nominal left
+turn of ``e_irregular_oblique``, 17 of its 20 collisions were pedestrians walking into the ego
+standing at its waiting point, and on the right turn all 4 were cyclists riding into its side;
+with the rule controller, 4 of the 5 collisions of the ``f_irregular_wide`` right turn were
+cyclists riding into it from behind while it stood in its turn. No one does that; they stop, or
+go round the car.
 
-The rule: while the ego stands (below :data:`EGO_STANDING_MPS`), a pedestrian whose next
-:data:`LOOKAHEAD_S` of walking (at least :data:`LOOKAHEAD_MIN_M`) would bring its body into the
-ego's footprint stops where it is, and walks on as soon as either no longer holds (the ego drives
-off, or it no longer faces the car). A moving ego gets no such courtesy: a pedestrian it drives
-into is its collision.
-
-Cyclists are left to SUMO on purpose: tried on the nominal right turn of ``e_irregular_oblique``,
-a cyclist held short of an ego standing turned across the bike lane stood in the very place the
-ego was waiting to clear, and the two waited on each other until the gridlock breaker removed the
-cyclist: of the 4 runs that had ended in a cyclist riding into the standing ego at 12–30 s, 3
-passed after 138–159 s and 1 timed out.
+The rule: while the ego stands (below :data:`EGO_STANDING_MPS`), a pedestrian or cyclist whose way
+ahead would bring its body into the ego's footprint stops (a cyclist at its own deceleration,
+through SUMO), and goes on as soon as either no longer holds (the ego drives off, or it no longer
+faces the car). A pedestrian looks :data:`LOOKAHEAD_S` ahead at its speed (at least
+:data:`LOOKAHEAD_MIN_M`); a cyclist that far plus its braking distance, so that it can stop in
+time. A cyclist held :data:`CYCLIST_STANDOFF_S` while the ego still stands goes round the car: it
+is taken out of the simulation, an episode event like the gridlock breaker's — held short of a car
+standing across the bike lane, it stands where that car waits to go, and the two would wait on
+each other (tried: SUMO's driver then passed only once the gridlock breaker took the cyclist out,
+after 138–159 s). A moving ego gets no courtesy: whoever it drives into is its collision.
 
 Pure geometry below; :class:`Courtesy` applies it to a session.
 """
@@ -32,24 +34,34 @@ from typing import NamedTuple
 import numpy as np
 
 from crossroads.geometry import FloatArray
+from crossroads.sim.gridlock import Removal
 from crossroads.sim.sumo import SumoSession
 
 EGO_STANDING_MPS = 0.5  # [m/s] below this the ego counts as standing
-LOOKAHEAD_S = 1.0  # [s] how far ahead a pedestrian looks, at its speed
+LOOKAHEAD_S = 1.0  # [s] how far ahead a pedestrian or cyclist looks, at its speed
 LOOKAHEAD_MIN_M = 1.0  # [m] ... and at least this far (one held still looks ahead too)
 PEDESTRIAN_MARGIN_M = 0.35  # [m] half a pedestrian's 0.5 m body and 0.1 m to spare
+CYCLIST_MARGIN_M = 0.45  # [m] half a bicycle's 0.65 m and 0.12 m to spare
+CYCLIST_DECEL_MPS2 = 3.0  # [m/s²] the world's bicycles brake at this (sim/traffic.py vType)
+CYCLIST_STANDOFF_S = 8.0  # [s] a cyclist held this long by a still standing ego goes round it
 _SAMPLES = np.linspace(0.0, 1.0, 8)  # points along the way ahead checked against the footprint
 NEAR_M = 8.0  # [m] nobody farther from the ego's centre is checked
 
 
 class Movers(NamedTuple):
-    """The pedestrians of one step: SUMO ids and their centres, headings, speeds."""
+    """Pedestrians or cyclists of one step: SUMO ids and their centres, headings, speeds."""
 
     ids: np.ndarray
     x: FloatArray
     y: FloatArray
     heading: FloatArray
     speed: FloatArray
+
+
+def cyclist_reach(speed: FloatArray) -> FloatArray:
+    """[m] how far ahead a cyclist looks: :data:`LOOKAHEAD_S` at its speed plus its braking distance."""
+    speed = np.asarray(speed, dtype=float)
+    return speed * LOOKAHEAD_S + speed**2 / (2.0 * CYCLIST_DECEL_MPS2)
 
 
 def moving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
@@ -78,28 +90,51 @@ def walking_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: flo
                        np.asarray(speed, dtype=float) * LOOKAHEAD_S, PEDESTRIAN_MARGIN_M)
 
 
+def riding_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
+                x: FloatArray, y: FloatArray, heading: FloatArray, speed: FloatArray) -> np.ndarray:
+    """:func:`moving_into` for cyclists: :func:`cyclist_reach` ahead."""
+    return moving_into(ego_x, ego_y, ego_heading, ego_length, ego_width, x, y, heading,
+                       cyclist_reach(speed), CYCLIST_MARGIN_M)
+
+
 class Courtesy:
-    """Holds the pedestrians that would walk into the standing ego (see the module's rule) and lets
-    them go again; ``enabled`` False turns the rule off."""
+    """Holds the pedestrians and cyclists that would move into the standing ego (see the module's
+    rule), lets them go again, and takes out cyclists held too long; ``enabled`` False turns the
+    rule off."""
 
     def __init__(self, enabled: bool = True) -> None:
         self.enabled = enabled
         self.held_pedestrians: set[str] = set()
+        self.held_cyclists: dict[str, float] = {}  # id -> held since [s, SUMO time]
 
     def may_act(self, ego_speed: float) -> bool:
         """Whether :meth:`update` can change anything: the ego stands, or someone is held."""
-        return self.enabled and (ego_speed < EGO_STANDING_MPS or bool(self.held_pedestrians))
+        return self.enabled and (ego_speed < EGO_STANDING_MPS
+                                 or bool(self.held_pedestrians or self.held_cyclists))
 
-    def update(self, session: SumoSession, pedestrians: Movers,
-               ego: tuple[float, float, float, float, float, float]) -> None:
+    def update(self, session: SumoSession, pedestrians: Movers, cyclists: Movers,
+               ego: tuple[float, float, float, float, float, float]) -> list[Removal]:
         """``ego``: its (x, y, heading, speed, length, width). Holds and releases through
-        ``session``."""
+        ``session`` (pedestrians by their walking speed, cyclists as the vehicles they are);
+        returns the cyclists taken out (held :data:`CYCLIST_STANDOFF_S`)."""
         if not self.enabled:
-            return
+            return []
         standing = ego[3] < EGO_STANDING_MPS
         now = _who(pedestrians, ego, walking_into) if standing else set()
         self.held_pedestrians = _apply(now, self.held_pedestrians, pedestrians.ids,
                                        session.hold_person, session.release_person)
+        now = _who(cyclists, ego, riding_into) if standing else set()
+        kept = _apply(now, set(self.held_cyclists), cyclists.ids,
+                      lambda vid: session.set_speed(vid, 0.0), lambda vid: session.set_speed(vid, -1.0))
+        t = session.time_s
+        self.held_cyclists = {vid: self.held_cyclists.get(vid, t) for vid in kept}
+        removals = []
+        for vid, since in list(self.held_cyclists.items()):
+            if t - since >= CYCLIST_STANDOFF_S - 1e-9:
+                removals.append(Removal(t, vid, t - since, session.vehicle_lane(vid)))
+                session.remove(vid)
+                del self.held_cyclists[vid]
+        return removals
 
 
 def _who(movers: Movers, ego: tuple[float, float, float, float, float, float],

@@ -86,6 +86,7 @@ STOPPED_SPEED_MPS = 0.1  # [m/s] below this a vehicle counts as stopped
 ROUTE_MARGIN_S = 30.0  # [s] demand is drawn for warm-up + timeout + this margin
 _SAME_WAY_COS = math.cos(FRONT_HEADING_TOLERANCE_RAD)
 _PEDESTRIAN = KIND_CODE["pedestrian"]
+_CYCLIST = KIND_CODE["cyclist"]
 
 
 class _Around(NamedTuple):
@@ -344,13 +345,18 @@ class World:
         return obs, self.outcome
 
     def _let_pedestrians_stop(self, snap: Snapshot) -> None:
-        """Pedestrians about to walk into the standing ego stop (sim/courtesy.py)."""
+        """Pedestrians and cyclists about to move into the standing ego stop (sim/courtesy.py);
+        a cyclist taken out after a standoff is an episode event."""
         x, y, speed, _, heading = self.ego[:5].tolist()
         if not self._courtesy.may_act(speed):
             return
-        rows = (snap.kind_code == _PEDESTRIAN).nonzero()[0]
-        walkers = Movers(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows])
-        self._courtesy.update(self.session, walkers, (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M))
+        movers = []
+        for code in (_PEDESTRIAN, _CYCLIST):
+            rows = (snap.kind_code == code).nonzero()[0]
+            movers.append(Movers(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows]))
+        removals = self._courtesy.update(self.session, movers[0], movers[1],
+                                         (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M))
+        self.events.extend(r.to_event(self.time_s) for r in removals)
 
     def _read_sumo_ego(self) -> None:
         """The ego's state from SUMO, which drove it this step (policy ``sumo``)."""
