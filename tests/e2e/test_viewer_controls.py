@@ -53,9 +53,9 @@ def test_keyboard_view_controls_and_events(studio_url: str, browser: Any, artifa
 
     # the keys act while the pointer is over the view
     page.hover("#viewer-title")
-    for _ in range(3):
+    for frame in (1, 2, 3):  # at a person's pace: each step shown before the next key
         page.keyboard.press("ArrowRight")
-    viewer.wait_for_function(f"({CHARTS_JS})().find({SPEED_MARKER}).now === 3", timeout=20_000)
+        viewer.wait_for_function(f"({CHARTS_JS})().find({SPEED_MARKER}).now === {frame}", timeout=20_000)
     page.keyboard.press("ArrowLeft")
     viewer.wait_for_function(f"({CHARTS_JS})().find({SPEED_MARKER}).now === 2", timeout=20_000)
     page.keyboard.press("+")
