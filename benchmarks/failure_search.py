@@ -1,7 +1,8 @@
 """Failure search against uniform random sampling of the same space, the same episode budget.
 
     python benchmarks/failure_search.py --budget 1000            # the issue's figure
-    nice -n 10 python benchmarks/failure_search.py --budget 200 --timeout 60 --shrink-limit 10
+    nice -n 5 python benchmarks/failure_search.py --budget 200 --workers 3 --timeout 60 --seed 41 \
+        --shrink-limit 1 --shrink-steps 6 --work-dir var/failure-search   # docs/guide/failure-search.md
 
 Two searches of one space for one policy (default ``models/apg.pt+shield`` on
 ``scenarios/search/c_three_lane-left.yaml``), each through the real ``crossroads search`` command
@@ -12,9 +13,12 @@ with ``crossroads evaluate`` on its scenario file (a fresh store) and its outcom
 Figures: distinct failing scenarios per 1 000 search episodes (distinct: the stored failure's
 scenario, its name left out; shrinking episodes are not counted in the budget and are reported
 apart), their ratio (target: TPE at least 3× random), failure modes (outcome and the parameters a
-shrunk failure still needs off nominal), the cells of the space (each range in thirds) that hold a
-failure, which near-copies of one failure cannot inflate, and how many stored failures replay with
-the same outcome (target: all).
+shrunk failure still needs off nominal), and two counts that near-copies of one failure (the same
+region, another seed) cannot inflate: the cells of the space (each range in thirds) that hold a
+failure, and the failures at least 10 % (20 %) of some parameter's range apart from every failure
+counted before them (``separated_failures``); the failing share with its Wilson 95 % interval and
+a one-sided Fisher exact test of TPE's failing share against random's; and how many stored
+failures replay with the same outcome (target: all).
 
 ``--timeout S`` replaces the nominal scenario's episode timeout (the space is rewritten with the
 scenario inline): shorter episodes, the same failures before S. Exit status 1 when a target is
@@ -35,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -73,16 +78,32 @@ def space_file(space: Path, timeout: float | None, work: Path) -> Path:
     return out
 
 
-def replay(failures_dir: Path, policy: str, db: str, workers: int, env: dict[str, str]) -> dict[str, str]:
-    """``crossroads evaluate`` on every failure file of a search: scenario name → outcome."""
-    if not any(failures_dir.glob("*.yaml")):
-        return {}
-    batches = crossroads("evaluate", str(failures_dir), "--policy", policy, "--db", db,
-                         "--workers", str(workers), "--json", env=env)
+def replay(failures_dir: Path, policy: str, out_dir: Path, workers: int, env: dict[str, str]) -> dict[str, str]:
+    """``crossroads evaluate`` on every failure file of a search: scenario name → outcome. The files
+    are dealt to ``workers`` commands run side by side (each file is a batch of one run, and one
+    command runs its batches one after the other), each with its own store in ``out_dir``."""
+    files = sorted(failures_dir.glob("*.yaml"))
+    groups = [files[k::workers] for k in range(workers) if files[k::workers]]
+    procs = []
+    for k, group in enumerate(groups):
+        folder = out_dir / f"{failures_dir.name}-{k}"
+        folder.mkdir(parents=True, exist_ok=True)
+        for path in group:
+            (folder / path.name).unlink(missing_ok=True)
+            (folder / path.name).symlink_to(path.resolve())
+        db = f"sqlite:///{out_dir / f'{failures_dir.name}-{k}.db'}"
+        procs.append(subprocess.Popen(
+            [sys.executable, "-m", "crossroads.cli", "evaluate", str(folder), "--policy", policy, "--db", db,
+             "--workers", "1", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            cwd=REPO_ROOT, env=env))
     out = {}
-    for batch in batches:  # type: ignore[union-attr]
-        counts = {k: v for k, v in batch["outcome_counts"].items() if v}
-        out[batch["scenario"]] = next(iter(counts)) if len(counts) == 1 else json.dumps(counts)
+    for proc in procs:
+        stdout, stderr = proc.communicate()
+        if proc.returncode != 0:
+            raise SystemExit(f"crossroads evaluate failed ({proc.returncode}):\n{stderr[-3000:]}")
+        for batch in json.loads(stdout.strip().splitlines()[-1]):
+            counts = {k: v for k, v in batch["outcome_counts"].items() if v}
+            out[batch["scenario"]] = next(iter(counts)) if len(counts) == 1 else json.dumps(counts)
     return out
 
 
@@ -101,23 +122,24 @@ def stored_arms(db: str) -> dict[str, dict[str, Any]]:
         store.close()
 
 
-def stored_replays(db: str) -> dict[str, str]:
-    """Scenario name → outcome of every replayed failure in the replay store (for --recount)."""
+def stored_replays(out_dir: Path) -> dict[str, str]:
+    """Scenario name → outcome of every replayed failure in the replay stores (for --recount)."""
     from crossroads.evaluation.batch import summarize_batch
     from crossroads.store import crud, open_store
 
-    store = open_store(db)
-    try:
-        with store.session() as session:
-            ids = [b.id for b in crud.list_batches(session=session, limit=100_000)]
-        out = {}
-        for batch_id in ids:
-            result = summarize_batch(store, batch_id)
-            counts = {k: v for k, v in result.outcome_counts.items() if v}
-            out[result.scenario] = next(iter(counts)) if len(counts) == 1 else json.dumps(counts)
-        return out
-    finally:
-        store.close()
+    out = {}
+    for path in sorted(out_dir.glob("*.db")):
+        store = open_store(f"sqlite:///{path}")
+        try:
+            with store.session() as session:
+                ids = [b.id for b in crud.list_batches(session=session, limit=100_000)]
+            for batch_id in ids:
+                result = summarize_batch(store, batch_id)
+                counts = {k: v for k, v in result.outcome_counts.items() if v}
+                out[result.scenario] = next(iter(counts)) if len(counts) == 1 else json.dumps(counts)
+        finally:
+            store.close()
+    return out
 
 
 def failing_cells(db: str, search_id: int, bins: int = CELL_BINS) -> int:
@@ -210,6 +232,46 @@ def throughput(args: argparse.Namespace, space: Path, work: Path, env: dict[str,
     return 0 if same_points and not differ else 1
 
 
+def separated_failures(db: str, search_id: int, radius: float) -> int:
+    """How many failing episodes of the search are at least ``radius`` apart: taken in trial order,
+    a failure counts when every one counted before differs from it by ``radius`` or more of some
+    parameter's range (or in a choice). Near-copies of one failure (the same region, another
+    seed) count once; ``failing_cells`` is the same idea on a fixed grid."""
+    from crossroads.search import records
+    from crossroads.search.engine import stored_space
+    from crossroads.search.objective import FAILURE_VALUE
+    from crossroads.store import open_store
+
+    store = open_store(db)
+    try:
+        with store.session() as session:
+            search = records.get_search(session=session, search_id=search_id)
+            assert search is not None
+            space = stored_space(search.space, search_id)
+            failing = [t.params for t in records.trials(session=session, search_id=search_id, kind="search")
+                       if t.objective == FAILURE_VALUE]
+    finally:
+        store.close()
+    kept: list[dict[str, Any]] = []
+    for params in failing:
+        def apart(other: dict[str, Any], params: dict[str, Any] = params) -> bool:
+            for p in space.parameters:
+                a, b = float(params[p.path]), float(other[p.path])
+                if (a != b) if p.choices is not None else abs(a - b) >= radius * p.span:
+                    return True
+            return False
+        if all(apart(other) for other in kept):
+            kept.append(params)
+    return len(kept)
+
+
+def fisher_greater(a: int, n: int, b: int, m: int) -> float:
+    """One-sided Fisher exact test: the chance of ``a`` or more of the ``a + b`` failures falling in
+    the first arm (``n`` episodes; the second ``m``) were both arms the same."""
+    total, k = n + m, a + b
+    return sum(math.comb(n, i) * math.comb(m, k - i) for i in range(a, min(n, k) + 1)) / math.comb(total, k)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--policy", default="models/apg.pt+shield")
@@ -229,6 +291,7 @@ def main() -> int:
     parser.add_argument("--recount", action="store_true",
                         help="run nothing: the figures of the searches and replays stored in --work-dir")
     args = parser.parse_args()
+    from crossroads.evaluation.metrics import wilson_interval
     if args.recount and args.work_dir is None:
         parser.error("--recount needs --work-dir")
 
@@ -259,36 +322,51 @@ def main() -> int:
               f"{summary['distinct_failures']} distinct failures, {summary['failure_modes']} modes, "
               f"{summary['shrink_episodes']} shrinking episodes, {summary['wall_s']} s", flush=True)
 
-    replay_db = f"sqlite:///{work / 'replay.db'}"
+    replay_dir = work / "replay"
     figures: dict[str, Any] = {"policy": args.policy, "space": str(args.space), "budget": args.budget,
                                "seed": args.seed, "timeout_s": args.timeout, "work_dir": str(work), "arms": {}}
     all_replayed = True
     for sampler, summary in arms.items():
-        replayed = (stored_replays(replay_db) if args.recount
-                    else replay(work / f"failures-{sampler}", args.policy, replay_db, args.workers, env))
+        replayed = (stored_replays(replay_dir) if args.recount
+                    else replay(work / f"failures-{sampler}", args.policy, replay_dir, args.workers, env))
         stored = {f["name"]: f["outcome"] for f in summary["failure_list"]}
         same = sum(replayed.get(name) == outcome for name, outcome in stored.items())
         differ = {name: (outcome, replayed.get(name)) for name, outcome in stored.items()
                   if replayed.get(name) != outcome}
         all_replayed &= not differ
         per_1000 = 1000.0 * summary["distinct_failures"] / summary["searched"] if summary["searched"] else 0.0
+        cells = failing_cells(db, summary["search_id"])
+        low, high = wilson_interval(summary["failing"], summary["searched"])
         figures["arms"][sampler] = {
             "episodes": summary["searched"], "outcomes": summary["outcomes"],
-            "failing_episodes": summary["failing"], "distinct_failures": summary["distinct_failures"],
+            "failing_episodes": summary["failing"],
+            "failing_share_wilson95": [round(low, 3), round(high, 3)],
+            "distinct_failures": summary["distinct_failures"],
             "distinct_per_1000": round(per_1000, 1), "failure_modes": summary["failure_modes"],
-            "failing_cells": failing_cells(db, summary["search_id"]),
+            "failing_cells": cells,
+            "separated_10pct": separated_failures(db, summary["search_id"], 0.1),
+            "separated_20pct": separated_failures(db, summary["search_id"], 0.2),
+            "cells_per_1000": round(1000.0 * cells / summary["searched"], 1) if summary["searched"] else 0.0,
             "shrink_episodes": summary["shrink_episodes"], "replayed_same": same,
             "stored": len(stored), "replay_differs": differ, "wall_s": summary.get("wall_s")}
     tpe, rnd = figures["arms"]["tpe"]["distinct_per_1000"], figures["arms"]["random"]["distinct_per_1000"]
     ratio = tpe / rnd if rnd else float("inf") if tpe else None
     figures["ratio"] = None if ratio is None else round(ratio, 2)
+    t_arm, r_arm = figures["arms"]["tpe"], figures["arms"]["random"]
+    figures["cells_ratio"] = (round(t_arm["cells_per_1000"] / r_arm["cells_per_1000"], 2)
+                              if r_arm["cells_per_1000"] else None)
+    for key in ("separated_10pct", "separated_20pct"):  # the budgets are the same: a ratio of counts
+        figures[f"{key}_ratio"] = round(t_arm[key] / r_arm[key], 2) if r_arm[key] else None
+    figures["fisher_one_sided_p"] = round(fisher_greater(
+        t_arm["failing_episodes"], t_arm["episodes"], r_arm["failing_episodes"], r_arm["episodes"]), 5)
     print(json.dumps(figures, indent=2))
     if args.out is not None:
         args.out.write_text(json.dumps(figures, indent=2) + "\n")
     ok = all_replayed and ratio is not None and ratio >= TARGET_RATIO
     print(f"distinct failing scenarios per 1000 episodes: TPE {tpe}, random {rnd}, ratio "
-          f"{figures['ratio']} (target >= {TARGET_RATIO:g}); every stored failure replays the same: "
-          f"{all_replayed}", flush=True)
+          f"{figures['ratio']} (target >= {TARGET_RATIO:g}); failing cells per 1000: ratio "
+          f"{figures['cells_ratio']}; failures 10 % apart: ratio {figures['separated_10pct_ratio']}; "
+          f"every stored failure replays the same: {all_replayed}", flush=True)
     return 0 if ok else 1
 
 

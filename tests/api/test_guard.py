@@ -167,7 +167,7 @@ def test_serve_warns_and_makes_a_token_when_public(monkeypatch: pytest.MonkeyPat
     settings = served[-1][0].state.settings
     token = settings.token.get_secret_value()
     assert len(token) >= 16 and f"http://0.0.0.0:8123/?token={token}" in result.output
-    assert served[-1][1] == {"host": "0.0.0.0", "port": 8123, "log_level": "info"}
+    assert served[-1][1] == {"host": "0.0.0.0", "port": 8123, "log_level": "info", "timeout_graceful_shutdown": 5}
 
     given = CliRunner().invoke(app, ["serve", "--token", TOKEN])
     assert given.exit_code == 0 and "WARNING" not in given.output

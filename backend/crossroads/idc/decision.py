@@ -161,9 +161,9 @@ def first_identical(states: np.ndarray) -> np.ndarray:
     the same), so the least value, and with it the path whose crossings and exit heading the shield
     checks, went to whichever row the rounding favoured. Measured on the first 50 seeds of the
     nominal left turn on c_three_lane (30 s): the shipped APG and its ONNX export, given the same
-    observations, chose different paths at 2 to 14 steps of every episode, and with the shield the
-    two ended seed 562883973 differently (docs/guide/own-driver.md); with the tie to the first, at
-    none."""
+    observations, chose different paths at 2 to 14 steps of every episode (with the shield they once
+    ended a seed of 50 differently, docs/guide/own-driver.md); with the tie to the first, at no
+    step."""
     x = np.asarray(states)
     same = (x[:, None, :] == x[None, :, :]).all(axis=-1)
     np.fill_diagonal(same, True)  # a state with a NaN is still itself

@@ -508,20 +508,21 @@ def build_states(
     px, py, vx, phi = e[PX].item(), e[PY].item(), e[VX].item(), e[PHI].item()
     st = _stacked(candidates)
     i, t = _nearest_segments(st, px, py)
-    m = t.shape[1]
-    flat = [k + c * m for c, k in enumerate(i.tolist())]
-    out = np.empty((len(flat), PREVIEW_STATE_DIM if preview else STATE_DIM))
+    n = len(i)
+    flat = i + np.arange(n) * t.shape[1]  # each candidate's nearest segment in the flattened (C, M)
+    w = t.take(flat)
+    out = np.empty((n, PREVIEW_STATE_DIM if preview else STATE_DIM))
     out[:, EGO] = e
     out[:, OTHERS] = np.asarray(others16, dtype=np.float64).reshape(-1)
     # x_track of the few candidates on Python floats: the arithmetic of references() and
     # tracking_error element by element (same numbers; math.cos/sin give numpy's float64
     # cos/sin, tests/idc/test_state.py), without ~40 numpy calls on arrays of 3
-    out[:, TRACK] = [
-        _track(px, py, vx, phi, w, *seg)
-        for w, seg in zip(t.ravel()[flat].tolist(), st.pack[mode][flat].tolist())
-    ]
+    track: list[float] = []
+    for fraction, seg in zip(w.tolist(), st.pack[mode].take(flat, axis=0).tolist()):
+        track += _track(px, py, vx, phi, fraction, *seg)
+    out[:, TRACK] = np.array(track).reshape(n, TRACK_STATE_DIM)
     if preview:
-        out[:, PREVIEW] = _preview_numpy(st, e, i, t.ravel()[flat], mode)
+        out[:, PREVIEW] = _preview_numpy(st, e, i, w, mode)
     return out
 
 

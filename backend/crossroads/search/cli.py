@@ -31,7 +31,8 @@ def search(
     sampler: Annotated[Sampler, typer.Option(
         help="tpe: optuna's TPE on the near-miss objective; random: uniform (a baseline)")] = "tpe",
     generation: Annotated[int | None, typer.Option(
-        min=1, help="trials proposed at once (default: the workers); fixes the search's sequence")] = None,
+        min=1, help="trials proposed without each other's results: trial n knows the results of "
+                    "trials 0..n-N (default: the workers); fixes the search's sequence")] = None,
     shrink_steps: Annotated[int | None, typer.Option(
         min=0, help="at most this many episodes to shrink each failure (default: 2 per parameter)")] = None,
     failures_dir: Annotated[Path | None, typer.Option(

@@ -141,8 +141,26 @@ def _distributions(space: Space) -> dict[str, Any]:
     return out
 
 
-def make_sampler(kind: str, seed: int) -> Any:
-    """Optuna's sampler for a generation: TPE (multivariate, constant liar) or uniform random."""
+@dataclass(frozen=True)
+class FailureSplit:
+    """TPE's split of the told trials into its good side and the rest (optuna's ``gamma``): optuna's
+    default share (10 %, at most 25 trials), and at least every failure told so far.
+
+    Why: every failure scores the same (``FAILURE_VALUE``) and optuna breaks ties by trial order, so
+    with its default split only the first few failures were on the good side, frozen there once 25
+    had been found, and every later failure counted *against* its own region. With every failure on
+    the good side, TPE's ratio of the two densities follows the chance of failing, in every region
+    where failures were found, not only around the first ones."""
+
+    failing: int  # failures among the trials told
+
+    def __call__(self, told: int) -> int:
+        return max(min(math.ceil(0.1 * told), 25), self.failing)
+
+
+def make_sampler(kind: str, seed: int, failing: int = 0) -> Any:
+    """Optuna's sampler for one trial: TPE (multivariate, constant liar, the good side holding
+    every one of the ``failing`` failures told so far: :class:`FailureSplit`) or uniform random."""
     from optuna.samplers import RandomSampler, TPESampler
 
     if kind == "random":
@@ -152,7 +170,8 @@ def make_sampler(kind: str, seed: int) -> Any:
     with warnings.catch_warnings():  # multivariate TPE is marked experimental
         warnings.simplefilter("ignore")
         return TPESampler(seed=seed, multivariate=True, constant_liar=True,
-                          n_startup_trials=TPE_STARTUP_TRIALS, warn_independent_sampling=False)
+                          n_startup_trials=TPE_STARTUP_TRIALS, gamma=FailureSplit(failing),
+                          warn_independent_sampling=False)
 
 
 def trial_sampler_seed(search_seed: int, number: int) -> int:
@@ -436,9 +455,10 @@ class SearchRunner(BackgroundJob[dict[str, Any]]):
         asked: dict[int, Any] = {}
         finished: dict[int, float | None] = {}  # objectives not yet told
         to_run: deque[tuple[int, str, int | None, dict[str, Any], int]] = deque()
+        failing = 0  # failures among the trials told
 
         def ask(number: int) -> None:
-            study.sampler = make_sampler(self.sampler, trial_sampler_seed(self.seed, number))
+            study.sampler = make_sampler(self.sampler, trial_sampler_seed(self.seed, number), failing)
             trial = study.ask(distributions)
             params = {p.path: p.cast(trial.params[p.path]) for p in self.space.parameters}
             row = self._stored.get(number)
@@ -467,6 +487,7 @@ class SearchRunner(BackgroundJob[dict[str, Any]]):
                             study.tell(asked.pop(told), state=TrialState.FAIL)
                         else:
                             study.tell(asked.pop(told), value)
+                            failing += value == FAILURE_VALUE
                         if told + lag < self.budget:
                             ask(told + lag)
                         told += 1
