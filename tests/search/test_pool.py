@@ -99,20 +99,23 @@ def _alive(pid: int) -> bool:
 
 
 def test_cancel_drops_the_episode_and_a_new_worker_takes_the_next() -> None:
-    job = job_for(REPO_ROOT / "scenarios" / "nominal" / "a_single_lane-left.yaml", warmup_s=2.0)
-    short = replace(job, spec={**job.spec, "timeout_s": 3.0})
+    nominal = REPO_ROOT / "scenarios" / "nominal" / "a_single_lane-left.yaml"
+    short = job_for(nominal, warmup_s=2.0, timeout_s=3.0)
+    long = job_for(nominal, warmup_s=600.0, timeout_s=3600.0)  # 6 000 warm-up steps before the ego
     with TrialPool("rule", 1) as pool:
         (first_pid,) = pool.worker_pids()
+        warm = pool.run(short, EpisodeTask(0, 7), threading.Event())
+        assert warm is not None and warm.result is not None
         cancel = threading.Event()
-        threading.Timer(1.0, cancel.set).start()
+        threading.Timer(0.5, cancel.set).start()
         started = time.monotonic()
-        assert pool.run(job, EpisodeTask(0, 7), cancel) is None
-        assert time.monotonic() - started < 30.0
-        assert not _alive(first_pid)
+        assert pool.run(long, EpisodeTask(1, 7), cancel) is None
+        assert time.monotonic() - started < 10.0
+        assert not _alive(first_pid)  # killed with its episode
         reports: list[EpisodeReport] = []
-        PoolExecutor(pool).run(short, [EpisodeTask(1, 7), EpisodeTask(2, 8)], reports.append,
+        PoolExecutor(pool).run(short, [EpisodeTask(2, 7), EpisodeTask(3, 8)], reports.append,
                                threading.Event())
-        assert [r.run_index for r in reports] == [1, 2] and all(r.result is not None for r in reports)
-        assert pool.worker_pids() and pool.worker_pids() != [first_pid]
+        assert [r.run_index for r in reports] == [2, 3] and all(r.result is not None for r in reports)
         pids = pool.worker_pids()
+        assert pids and pids != [first_pid]
     assert not any(_alive(pid) for pid in pids)

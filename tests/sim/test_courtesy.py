@@ -135,3 +135,22 @@ def test_a_held_pedestrian_stands_in_sumo_and_walks_on_when_released(net: Path, 
         walked = session.snapshot()
         row2 = list(walked.ids).index("walker")
         assert np.hypot(walked.x[row2] - held.x[row1], walked.y[row2] - held.y[row1]) > 1.0
+
+
+def test_after_a_cyclist_goes_round_the_car_the_observation_reads_no_one_gone() -> None:
+    # SUMO's driver stands in its right turn on e_irregular_oblique while a cyclist is held behind
+    # it for 8 s (base seed 20261206's run 466267842): the cyclist is taken out mid-step, and the
+    # step's observation must not name it (reading its lane would fail in SUMO)
+    from crossroads.evaluation.sumo_driver import SumoDriverPolicy
+    from crossroads.scenario.spec import load_scenario, to_world_config
+    from crossroads.sim.world import World
+
+    spec = load_scenario(Path(__file__).parents[2] / "scenarios/nominal/e_irregular_oblique-right.yaml")
+    with World(to_world_config(spec)) as world:
+        obs = world.reset(466267842, sumo_driver=SumoDriverPolicy().driver)
+        outcome = None
+        while outcome is None:
+            obs, outcome = world.step(None)
+            obs.participants.lane_id  # noqa: B018 - reads every participant's lane in SUMO
+        removed = [e for e in world.events if e["event"] == "gridlock_removed" and e["value"]["id"].startswith("bike")]
+    assert removed and outcome.kind == "passed"

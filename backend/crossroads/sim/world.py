@@ -340,16 +340,17 @@ class World:
         around = self._around(snap)
         obs = self._observe(snap, around)
         self.outcome = self._judge(snap, obs, previous_distance, around)
-        if self.outcome is None:
-            self._let_pedestrians_stop(snap)
+        if self.outcome is None and self._let_pedestrians_stop(snap):
+            # a cyclist was taken out: observe again, so no one reads a participant SUMO no longer has
+            obs = self._observe(self.session.snapshot())
         return obs, self.outcome
 
-    def _let_pedestrians_stop(self, snap: Snapshot) -> None:
+    def _let_pedestrians_stop(self, snap: Snapshot) -> bool:
         """Pedestrians and cyclists about to move into the standing ego stop (sim/courtesy.py);
-        a cyclist taken out after a standoff is an episode event."""
+        a cyclist taken out after a standoff is an episode event. Whether anyone was taken out."""
         x, y, speed, _, heading = self.ego[:5].tolist()
         if not self._courtesy.may_act(speed):
-            return
+            return False
         movers = []
         for code in (_PEDESTRIAN, _CYCLIST):
             rows = (snap.kind_code == code).nonzero()[0]
@@ -357,6 +358,7 @@ class World:
         removals = self._courtesy.update(self.session, movers[0], movers[1],
                                          (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M))
         self.events.extend(r.to_event(self.time_s) for r in removals)
+        return bool(removals)
 
     def _read_sumo_ego(self) -> None:
         """The ego's state from SUMO, which drove it this step (policy ``sumo``)."""
