@@ -52,7 +52,7 @@ def kerbside_crossing_shapes(net_file: str | Path,
         lane = edge.find("lane")
         if lane is None:
             continue
-        points = np.array([[float(v) for v in p.split(",")[:2]] for p in lane.get("shape", "").split()])
+        points = _points(lane)
         if function is None and len(points) >= 2:  # a normal edge: its car lanes
             car_areas.extend(LineString(_points(car)).buffer(float(car.get("width", "3.2")) / 2.0, cap_style="flat")
                              for car in edge.iter("lane") if "passenger" in car.get("allow", "passenger"))
