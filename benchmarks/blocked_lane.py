@@ -82,12 +82,12 @@ def drive(world: World, driver: Controller, seed: int) -> RunEnd:
     outcome = None
     while outcome is None:
         obs, outcome = world.step(driver.decide(obs).action)
-        snap = obs.participants
+        snap = world.truth.participants
         for pid in snap.ids[snap.speed >= STOPPED_SPEED_MPS].tolist():
             last_moved[pid] = obs.time_s
     if outcome.kind != "timeout":
         return RunEnd(seed, outcome.kind, None, None, None)
-    snap = obs.participants
+    snap = world.truth.participants
     vehicles = [(k, float(snap.x[k]), float(snap.y[k]), float(snap.width[k]))
                 for k in range(len(snap)) if snap.kind[k] == "vehicle"]
     found = nearest_barrier((float(obs.ego[0]), float(obs.ego[1])), vehicles, world.candidates)

@@ -27,7 +27,7 @@ from crossroads.idc.rule_based import RuleBasedController
 from crossroads.idc.state import build_states, select_others
 from crossroads.intersections import catalogue
 from crossroads.rl.checkpoint import load_networks
-from crossroads.rl.networks import make_networks
+from crossroads.rl.neural_nets import make_networks
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.world import World
 
@@ -41,7 +41,7 @@ def recorded_observations(n: int, seed: int) -> list:
         obs = world.reset(seed)
         controller.reset(world.candidates)
         while len(out) < n:
-            obs.participants.lane_id  # noqa: B018 (read now, in its step: the shield's curvatures need it later)
+            world.truth.participants.lane_id  # noqa: B018 (read now, in its step: the shield's curvatures need it later)
             out.append(obs)
             obs, outcome = world.step(controller.decide(obs).action)
             if outcome is not None:

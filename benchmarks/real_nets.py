@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/real_nets.py                       # paths, then 20 seeds per task
     .venv/bin/python benchmarks/real_nets.py --seeds 3 --only cross cologne1
     .venv/bin/python benchmarks/real_nets.py --paths-only
+    .venv/bin/python benchmarks/real_nets.py --base-seed 20261206 --shard 1/2   # and 2/2 beside it
 
 The corpus (:func:`corpus`): every traffic-light junction with at least three car approaches of
 ``../shared/realnets`` (a RESCO Cologne junction, the sumo-rl single intersection), of the example
@@ -49,7 +50,7 @@ from crossroads.evaluation.sumo_driver import SumoDriverPolicy  # noqa: E402
 from crossroads.idc.rule_based import RuleBasedController  # noqa: E402
 from crossroads.intersections.build import find_netconvert  # noqa: E402
 from crossroads.network.junction import JunctionError, read_junction  # noqa: E402
-from crossroads.network.model import TASKS, Junction  # noqa: E402
+from crossroads.network.road import TASKS, Junction  # noqa: E402
 from crossroads.network.netxml import TRAFFIC_LIGHT_TYPES, read_net_xml  # noqa: E402
 from crossroads.planning import PlanningError, plan_task  # noqa: E402
 from crossroads.planning.curves import MAX_CURVATURE  # noqa: E402
@@ -284,14 +285,15 @@ class EpisodeRow:
         return self.outcome == "collision" and self.time_s < EARLY_COLLISION_S
 
 
-def scenario_for(case: Case, task: str, seeds: int) -> tuple[ScenarioSpec, list[tuple[str, str]]]:
+def scenario_for(case: Case, task: str, seeds: int,
+                 base_seed: int = 0) -> tuple[ScenarioSpec, list[tuple[str, str]]]:
     """The scenario of one junction and task as a user would settle it, and what the network
     still refuses of it (``network_problems``, the check of run, evaluate and the API): the
     defaults, then, where the network says so, the ego as far out as the road allows (the
     refusal names how far) and the first program that shows the ego green (it names those)."""
     intersection = {"net": str(case.net)} | ({"junction": case.junction_id} if case.junction_id else {})
     fields: dict[str, object] = {"version": 1, "name": "corpus", "intersection": intersection,
-                                 "task": task, "runs": seeds}
+                                 "task": task, "runs": seeds, "seed": base_seed}
     spec = validate_scenario(fields, check_references=False)
     problems = network_problems(spec)
     for field_name, message in problems:
@@ -307,10 +309,10 @@ def scenario_for(case: Case, task: str, seeds: int) -> tuple[ScenarioSpec, list[
 
 
 def run_case(case: Case, task: str, policy: str, seeds: int,
-             timeout_s: float | None = None) -> Iterator[EpisodeRow]:
+             timeout_s: float | None = None, base_seed: int = 0) -> Iterator[EpisodeRow]:
     """``seeds`` episodes of one junction, task and policy (``rule`` | ``sumo``); a scenario the
     network refuses gives one row of outcome ``refused`` (its reasons as the detail)."""
-    spec, problems = scenario_for(case, task, seeds)
+    spec, problems = scenario_for(case, task, seeds, base_seed)
     if problems:
         yield EpisodeRow(case.name, task, policy, -1, "refused", 0.0,
                          "; ".join(f"{f}: {m}" for f, m in problems))
@@ -346,12 +348,20 @@ def main() -> int:
     parser.add_argument("--only", nargs="*", default=None, help="junction names (prefixes) to run")
     parser.add_argument("--paths-only", action="store_true", help="check the candidate paths only")
     parser.add_argument("--timeout", type=float, default=None, help="[s] episode timeout (default: the scenario's)")
+    parser.add_argument("--base-seed", type=int, default=0,
+                        help="the scenarios' base seed (run_seeds derives each episode's seed from it)")
+    parser.add_argument("--shard", default="1/1", metavar="K/N",
+                        help="run only the K-th of N interleaved slices of the corpus (for N processes)")
     args = parser.parse_args()
+    shard, shards = (int(x) for x in args.shard.split("/"))
+    if not 1 <= shard <= shards:
+        parser.error(f"--shard: K must be in 1..N, got {args.shard}")
     failed = False
     with tempfile.TemporaryDirectory(prefix="crossroads-corpus-") as tmp:
         cases = corpus(Path(tmp))
         if args.only:
             cases = [c for c in cases if any(c.name.startswith(p) for p in args.only)]
+        cases = cases[shard - 1::shards]
         print(f"{len(cases)} junctions; ego's steering limit {MAX_CURVATURE:.3f} 1/m")
         print(f"{'junction':34s} {'approach':22s} {'task':8s} {'cands':>5s} {'max κ':>6s}  refused / note")
         junctions: dict[str, Junction] = {}
@@ -374,7 +384,7 @@ def main() -> int:
                 if not junction.default_approach().connections_for(task):
                     continue
                 for policy in args.policies:
-                    rows = list(run_case(case, task, policy, args.seeds, args.timeout))
+                    rows = list(run_case(case, task, policy, args.seeds, args.timeout, args.base_seed))
                     counts: dict[str, int] = {}
                     for r in rows:
                         counts[r.outcome] = counts.get(r.outcome, 0) + 1

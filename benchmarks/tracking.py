@@ -32,7 +32,7 @@ from crossroads.evaluation.policies import load_controller
 from crossroads.policy.ref import parse_policy
 from crossroads.idc.controller import Controller
 from crossroads.intersections import catalogue
-from crossroads.network.model import TASKS
+from crossroads.network.road import TASKS
 from crossroads.sim.config import EgoStart, WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC
 from crossroads.sim.world import World

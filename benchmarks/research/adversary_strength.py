@@ -33,7 +33,7 @@ from crossroads.idc.state import PAD_DISTANCE_M, path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.config import XI_POSITION_MODES  # noqa: E402
-from crossroads.rl.model import IDCModel  # noqa: E402
+from crossroads.rl.idc_model import IDCModel  # noqa: E402
 from crossroads.rl.sampler import observation_sample  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 from probing import HORIZON, ego_frame, model_parser, probed_states  # noqa: E402

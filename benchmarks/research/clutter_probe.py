@@ -41,7 +41,7 @@ from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import KIND_OF_SLOT, O_PHI, O_PX, O_PY, O_V, pad_participant, path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
-from crossroads.rl.model import IDCModel  # noqa: E402
+from crossroads.rl.idc_model import IDCModel  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 from probing import (  # noqa: E402
     CORRIDOR_HALF_WIDTH_M,

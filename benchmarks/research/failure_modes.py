@@ -48,8 +48,8 @@ from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import pad_participant, path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, StateBatch, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
-from crossroads.rl.model import IDCModel, Rollout  # noqa: E402
-from crossroads.rl.networks import Adversary  # noqa: E402
+from crossroads.rl.idc_model import IDCModel, Rollout  # noqa: E402
+from crossroads.rl.neural_nets import Adversary  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 from probing import (  # noqa: E402
     CORRIDOR_HALF_WIDTH_M,
@@ -177,10 +177,10 @@ def main() -> None:
         for end in episode_endings(world, controller, run_seeds(spec, args.runs), args.look_back):
             outcomes[end.outcome.kind] += 1
             if end.outcome.kind == "timeout":
-                held.setdefault(timeout_cause(end.final), []).append(end.ego_stood_s)
+                held.setdefault(timeout_cause(end.final, end.truth), []).append(end.ego_stood_s)
             if end.outcome.kind != "collision":
                 continue
-            snap = end.final.participants
+            snap = end.truth.participants
             row = list(snap.ids).index(end.outcome.detail.split()[-1])
             standing = "standing" if snap.speed[row] < STANDING_MPS else "moving"
             kinds[f"{where(end.final.ego, snap.x[row], snap.y[row])}, {standing} {snap.kind[row]}"] += 1

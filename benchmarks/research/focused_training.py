@@ -33,7 +33,7 @@ from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.rl.buffer import ReplayBuffer, Samples, StateBatch, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.learner import Learner  # noqa: E402
-from crossroads.rl.model import IDCModel  # noqa: E402
+from crossroads.rl.idc_model import IDCModel  # noqa: E402
 from crossroads.rl.sampler import PathSet, observation_sample  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
 

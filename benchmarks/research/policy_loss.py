@@ -40,7 +40,7 @@ from crossroads.idc.observed import observed_others  # noqa: E402
 from crossroads.rl.buffer import ReplayBuffer, Samples, StateBatch, to_batch  # noqa: E402
 from crossroads.rl.config import TrainConfig  # noqa: E402
 from crossroads.rl.learner import Learner  # noqa: E402
-from crossroads.rl.model import IDCModel, policy_fns  # noqa: E402
+from crossroads.rl.idc_model import IDCModel, policy_fns  # noqa: E402
 from crossroads.rl.sampler import EpisodeSampler, PathSet, WorkerSpec, as_sample, net_file  # noqa: E402
 from crossroads.rl.train import warm_start  # noqa: E402
 from crossroads.sim.config import EgoStart, WorldConfig  # noqa: E402

@@ -26,7 +26,7 @@ import torch  # noqa: E402
 from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
 from crossroads.rl.config import TrainConfig  # noqa: E402
-from crossroads.rl.model import IDCModel  # noqa: E402
+from crossroads.rl.idc_model import IDCModel  # noqa: E402
 from crossroads.rl.sampler import EpisodeSampler, PathSet, WorkerSpec  # noqa: E402
 
 BOUNDS = (2.5, 3.0)  # |z| thresholds printed (tanh 0.987 and 0.995 of the range)

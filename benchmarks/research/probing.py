@@ -25,10 +25,10 @@ from crossroads.idc.observed import observed_others
 from crossroads.idc.state import KIND_ROWS, N_OTHERS, build_states, path_tensors
 from crossroads.planning import CandidatePath
 from crossroads.rl.buffer import Samples
-from crossroads.rl.model import IDCModel, Rollout, StateBatch
+from crossroads.rl.idc_model import IDCModel, Rollout, StateBatch
 from crossroads.rl.sampler import observation_sample
 from crossroads.sim.snapshot import Snapshot
-from crossroads.sim.observation import Observation
+from crossroads.sim.observation import GroundTruth, Observation
 from crossroads.sim.outcome import Outcome
 from crossroads.sim.world import World
 
@@ -67,8 +67,9 @@ def in_the_way(ego: np.ndarray, snap: Snapshot) -> int | None:
     return int(near[np.argmin(along[near])]) if len(near) else None
 
 
-def timeout_cause(final: Observation) -> str:
-    """What held the ego when its episode timed out, from the last observation: the world's gridlock
+def timeout_cause(final: Observation, truth: GroundTruth) -> str:
+    """What held the ego when its episode timed out, from the last observation and the world's true
+    state then: the world's gridlock
     (a vehicle ahead standing ≥ ``GRIDLOCK_STOOD_S``), a shorter queue, or else where the ego was
     (before the stop line or inside the junction), whether it stood, and what was in its way."""
     stood = final.front_vehicle_stopped_s
@@ -78,7 +79,7 @@ def timeout_cause(final: Observation) -> str:
         return f"behind a vehicle standing < {GRIDLOCK_STOOD_S:g} s"
     place = "inside the junction" if final.past_stop_line else "before the stop line"
     motion = "standing" if final.ego[2] < STANDING_MPS else "moving"
-    snap = final.participants
+    snap = truth.participants
     row = in_the_way(final.ego, snap)
     if row is None:
         way = f"nothing within {IN_THE_WAY_M:g} m ahead"
@@ -117,6 +118,7 @@ class Ending:
 
     outcome: Outcome
     final: Observation  # the observation the world returned with the outcome
+    truth: GroundTruth  # the world's true state then
     before: Samples  # the state (one row) on the chosen path, ``look_back_s`` before the end
     mode: str  # the speed mode then
     stood_s: float  # how long the vehicle ahead had stood then [s]
@@ -140,7 +142,7 @@ def episode_endings(world: World, controller: IdcController, seeds: Sequence[int
             obs, outcome = world.step(decision.action)
             ego_stood_steps = ego_stood_steps + 1 if obs.ego[2] < STANDING_MPS else 0
         before, mode, stood = recent[0]
-        yield Ending(outcome, obs, before, mode, stood, ego_stood_steps * SIM_STEP_S)
+        yield Ending(outcome, obs, world.truth, before, mode, stood, ego_stood_steps * SIM_STEP_S)
 
 
 def collision_lookbacks(world: World, controller: IdcController, seeds: Sequence[int],

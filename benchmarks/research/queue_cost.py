@@ -35,7 +35,7 @@ from crossroads.rl.augment import CAR_LENGTH_M  # noqa: E402
 from crossroads.intersections import catalogue  # noqa: E402
 from crossroads.rl.buffer import StateBatch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
-from crossroads.rl.model import IDCModel  # noqa: E402
+from crossroads.rl.idc_model import IDCModel  # noqa: E402
 from crossroads.sim.config import WorldConfig  # noqa: E402
 from crossroads.sim.ego import ego_step  # noqa: E402
 from crossroads.sim.traffic import NO_TRAFFIC  # noqa: E402

@@ -35,7 +35,7 @@ from crossroads.intersections import catalogue  # noqa: E402
 from crossroads.planning.routes import CandidatePath  # noqa: E402
 from crossroads.rl.augment import CAR_LENGTH_M, CAR_WIDTH_M  # noqa: E402  (the training copies' car)
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
-from crossroads.rl.model import IDCModel, assemble  # noqa: E402
+from crossroads.rl.idc_model import IDCModel, assemble  # noqa: E402
 from crossroads.sim.config import WorldConfig  # noqa: E402
 from crossroads.sim.ego import braking_distance_m, ego_step  # noqa: E402
 from crossroads.sim.traffic import NO_TRAFFIC  # noqa: E402

@@ -38,7 +38,7 @@ from tracking import MAX_CURVATURE, SPEED_TARGET_MPS, TRACKING_TARGET_M  # noqa:
 from crossroads.constants import JERK_MAX, STEER_RATE_MAX  # noqa: E402
 from crossroads.idc.rule_based import RuleBasedController  # noqa: E402
 from crossroads.intersections import catalogue  # noqa: E402
-from crossroads.network.model import TASKS  # noqa: E402
+from crossroads.network.road import TASKS  # noqa: E402
 from crossroads.planning.routes import CandidatePath  # noqa: E402
 from crossroads.sim.config import EgoStart, WorldConfig  # noqa: E402
 from crossroads.sim.ego import ego_step  # noqa: E402

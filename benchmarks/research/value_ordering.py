@@ -28,7 +28,7 @@ from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
-from crossroads.rl.model import IDCModel  # noqa: E402
+from crossroads.rl.idc_model import IDCModel  # noqa: E402
 from crossroads.idc.observed import observed_others  # noqa: E402
 from crossroads.rl.sampler import as_sample  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402

@@ -47,7 +47,7 @@ def test_the_shield_switching_on_and_off_is_an_event() -> None:
     import torch
 
     from crossroads.idc.decision import IdcController
-    from crossroads.rl.networks import make_networks
+    from crossroads.rl.neural_nets import make_networks
 
     torch.manual_seed(0)
     nets = make_networks("dpg", hidden_layers=5, hidden_units=256)

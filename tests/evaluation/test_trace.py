@@ -186,8 +186,9 @@ def test_adapters_for_world_objects() -> None:
     snap = SimpleNamespace(ids=np.array(["v1", "p1"]), kind=np.array(["vehicle", "pedestrian"]),
                            x=np.array([1.0, 2.0]), y=np.array([0.0, 1.0]), heading=np.zeros(2),
                            speed=np.ones(2), length=np.array([4.5, 0.25]), width=np.array([1.8, 0.5]))
+    truth = SimpleNamespace(participants=snap, abnormal_ids=frozenset({"v1"}))
     obs = SimpleNamespace(
-        time_s=0.0, ego=np.zeros(8), participants=snap, abnormal_ids=frozenset({"v1"}),
+        time_s=0.0, ego=np.zeros(8),
         light=SimpleNamespace(light="green", remaining_s=5.0, state="GrGr"),
         perceived=SimpleNamespace(rows=np.array([1]), kinds=np.array(["pedestrian"]),
                                   observations=np.array([[2.0, 1.0, 1.0, 0.0, 0.3, 0.5]])),
@@ -197,8 +198,10 @@ def test_adapters_for_world_objects() -> None:
                             candidates=[SimpleNamespace(to_json=lambda: {"id": "left-0"})])
     rec = TraceRecorder()
     rec.start(world, 42)
-    rec.record(obs, SimpleNamespace(action=np.array([0.1, 0.2]), path_index=0, speed_mode="pass"))
-    rec.finish(obs, SimpleNamespace(kind="collision", time_s=0.1, detail="hit v1", other_kind="vehicle"))
+    with pytest.raises(TypeError, match="truth"):  # the observation alone holds no true state
+        rec.record(obs, SimpleNamespace(action=np.array([0.1, 0.2]), path_index=0, speed_mode="pass"))
+    rec.record(obs, SimpleNamespace(action=np.array([0.1, 0.2]), path_index=0, speed_mode="pass"), truth)
+    rec.finish(obs, SimpleNamespace(kind="collision", time_s=0.1, detail="hit v1", other_kind="vehicle"), truth)
     trace = rec.trace()
     assert trace.header["seed"] == 42 and trace.header["net"] == "/n/x.net.xml"
     assert trace.header["candidates"] == [{"id": "left-0"}] and trace.header["approach"] == "south_in"

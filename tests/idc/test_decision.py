@@ -18,7 +18,7 @@ from crossroads.idc.state import build_states, select_others
 from crossroads.intersections import catalogue
 from crossroads.planning import CandidatePath
 from crossroads.rl.checkpoint import load_networks
-from crossroads.rl.networks import make_networks
+from crossroads.rl.neural_nets import make_networks
 from crossroads.sim.config import SignalStart, WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC
 from crossroads.sim.observation import Observation, Perceived

@@ -18,7 +18,7 @@ import pytest
 from shapely.geometry import LineString, Point
 
 from crossroads.network.junction import JunctionError, read_junction
-from crossroads.network.model import Junction
+from crossroads.network.road import Junction
 
 REPO = Path(__file__).resolve().parents[2]
 REALNETS = REPO.parent / "shared" / "realnets"

@@ -21,7 +21,7 @@ import shapely
 from shapely.geometry import LineString, MultiPoint, Polygon
 
 from crossroads.geometry import unit
-from crossroads.network.model import Approach, Connection, Crossing, Junction, Lane, Turn
+from crossroads.network.road import Approach, Connection, Crossing, Junction, Lane, Turn
 
 LANE_WIDTH_M = 3.5
 LEG_LENGTH_M = 120.0

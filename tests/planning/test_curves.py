@@ -15,7 +15,7 @@ from crossroads.geometry import (
     heading_curvature_from_derivatives,
     point_at,
 )
-from crossroads.network.model import Lane
+from crossroads.network.road import Lane
 from crossroads.planning import PlanningError, build_candidate, plan_candidates, plan_task
 from crossroads.planning.curves import (
     MAX_CURVATURE,

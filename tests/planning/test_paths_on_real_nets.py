@@ -9,7 +9,7 @@ from shapely.geometry import LineString, Point
 from crossroads.constants import PATH_SAMPLE_SPACING_M, STOP_SHORT_M, V_LIMIT_MPS
 from crossroads.geometry import point_at, polyline_length, project_onto_polyline, wrap_angle
 from crossroads.intersections import catalogue
-from crossroads.network.model import TASKS
+from crossroads.network.road import TASKS
 from crossroads.intersections.resolve import open_junction
 from crossroads.planning import plan_candidates
 from crossroads.planning.curves import MAX_CURVATURE

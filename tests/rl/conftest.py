@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from crossroads.rl.buffer import StateBatch
-from crossroads.rl.model import IDCModel
+from crossroads.rl.idc_model import IDCModel
 from crossroads.rl.sampler import PathSet
 
 from rl.rl_support import INTERSECTION, make_batch

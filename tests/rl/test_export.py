@@ -97,7 +97,7 @@ def test_warm_start_from_an_exported_model(tmp_path: Path, path_set, model) -> N
                                                      (True, True, 8)],
                          ids=["paper-state", "path-preview", "preview-and-lead", "pooled-participants"])
 def test_onnx_export_equals_torch(tmp_path: Path, path_set, preview: bool, lead: bool, encoder: int) -> None:
-    from crossroads.rl.model import IDCModel
+    from crossroads.rl.idc_model import IDCModel
     from crossroads.rl.onnx_export import check_onnx, export_onnx
 
     run = train(tiny(tmp_path, iterations=3, run_name="onnx", path_preview=preview, lead_input=lead,

@@ -138,8 +138,8 @@ def test_a_run_with_the_path_preview_warm_started_from_one_without_keeps_its_out
     checkpoint drives through the online decision, which builds 120-value states for it."""
     from crossroads.idc.decision import IdcController
     from crossroads.idc.state import PREVIEW_STATE_DIM, STATE_DIM
-    from crossroads.rl.model import IDCModel
-    from crossroads.rl.networks import widen_first_layer
+    from crossroads.rl.idc_model import IDCModel
+    from crossroads.rl.neural_nets import widen_first_layer
 
     source = train(tiny(tmp_path, iterations=3, run_name="plain"))
     plain, _ = load_networks(source)
@@ -152,7 +152,7 @@ def test_a_run_with_the_path_preview_warm_started_from_one_without_keeps_its_out
     nets, config = load_networks(preview_run)
     assert config.path_preview and nets.policy.net[0].in_features == PREVIEW_STATE_DIM
     widened, _ = load_networks(source)
-    from crossroads.rl.networks import make_networks
+    from crossroads.rl.neural_nets import make_networks
     fresh = make_networks("apg", 2, 32, preview=True)
     fresh.policy.load_state_dict(widen_first_layer(widened.policy.state_dict(), fresh.policy))
     assert torch.allclose(fresh.policy.mean_action(states), plain.policy.mean_action(states[:, :STATE_DIM]))

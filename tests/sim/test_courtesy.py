@@ -151,6 +151,6 @@ def test_after_a_cyclist_goes_round_the_car_the_observation_reads_no_one_gone() 
         outcome = None
         while outcome is None:
             obs, outcome = world.step(None)
-            obs.participants.lane_id  # noqa: B018 - reads every participant's lane in SUMO
+            world.truth.participants.lane_id  # noqa: B018 - reads every participant's lane in SUMO
         removed = [e for e in world.events if e["event"] == "gridlock_removed" and e["value"]["id"].startswith("bike")]
     assert removed and outcome.kind == "passed"

@@ -37,7 +37,7 @@ def drive(world: World, seed: int, steps: int, controller=None) -> list[tuple]:
     for _ in range(steps):
         decision = controller.decide(obs)
         obs, outcome = world.step(decision.action)
-        snap = obs.participants
+        snap = world.truth.participants
         frames.append((obs.ego.tobytes(), tuple(snap.ids), snap.x.tobytes(), snap.y.tobytes(),
                        snap.speed.tobytes(), obs.light.state, obs.perceived.observations.tobytes()))
         if outcome is not None:
@@ -63,8 +63,8 @@ def test_ego_is_mirrored_into_sumo_with_its_footprint(net: str) -> None:
         assert math.hypot(x - obs.ego[0], y - obs.ego[1]) < 0.01
         assert abs(speed - obs.ego[2]) < 1e-6
         assert world.session.vehicle_size(EGO_ID) == pytest.approx((4.8, 2.0))
-        assert len(obs.participants) > 5, "warm-up populated the intersection"
-        assert EGO_ID not in set(obs.participants.ids)
+        assert len(world.truth.participants) > 5, "warm-up populated the intersection"
+        assert EGO_ID not in set(world.truth.participants.ids)
 
 
 def drive_to_outcome(world: World, seed: int):
@@ -165,7 +165,7 @@ def test_no_follower_is_left_too_close_behind_the_ego_as_it_enters() -> None:
     path = REPO_ROOT / "scenarios" / "nominal" / "c_three_lane-left.yaml"
     with World(to_world_config(load_scenario(path), path.parent)) as world:
         obs = world.reset(1705482282)
-        snap = obs.participants
+        snap = world.truth.participants
         heading = float(obs.ego[4])
         dx, dy = snap.x - obs.ego[0], snap.y - obs.ego[1]
         along = dx * math.cos(heading) + dy * math.sin(heading)
@@ -197,7 +197,7 @@ def test_the_start_zone_stays_free_of_insertions_and_lane_changes() -> None:
                     and d.from_edge in edges and begin <= d.depart_s <= end]
         assert not set(world.session.pending_vehicle_ids()) & {d.id for d in world.demand_plan.departures
                                                               if d.from_edge in edges}
-        snap = obs.participants
+        snap = world.truth.participants
         beside = [str(p) for p, lane in zip(snap.ids, snap.lane_id)
                   if lane == "166445405_0" and math.hypot(*(np.array([snap.x[snap.index(p)], snap.y[snap.index(p)]])
                                                             - obs.ego[:2])) < 20.0]
@@ -226,9 +226,9 @@ def test_abnormal_vehicles_of_the_paper_cases_show_in_the_world() -> None:
             flagged, top_speed = set(), 0.0
             for _ in range(900):  # rounding needs an opposite left-turner: a tenth of the vehicles
                 obs, outcome = world.step(controller.decide(obs).action)
-                for pid in obs.abnormal_ids:
+                for pid in world.truth.abnormal_ids:
                     flagged.add(pid)
-                    top_speed = max(top_speed, float(obs.participants.speed[obs.participants.index(pid)]))
+                    top_speed = max(top_speed, float(world.truth.participants.speed[world.truth.participants.index(pid)]))
                 if outcome is not None or (flagged and (kind != "overspeed" or top_speed > 1.3 * 30 / 3.6)):
                     break
             assert flagged and {world.abnormal.kinds.get(p, kind) for p in flagged} == {kind}

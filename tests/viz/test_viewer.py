@@ -130,7 +130,8 @@ def test_frame_of_observation_matches_the_trace(trace: Trace) -> None:
     config = replace(to_world_config(spec), warmup_s=15.0, timeout_s=6.0)
     with World(config) as world:
         observation = world.reset(3)
-    frame = frame_of_observation(observation, None, index=0)
+        truth = world.truth
+    frame = frame_of_observation(observation, truth, None, index=0)
     stored = trace.frame(0)
     assert [p["id"] for p in frame["participants"]] == [p["id"] for p in stored["participants"]]
     assert frame["signal"]["state"] == stored["signal"]["state"]

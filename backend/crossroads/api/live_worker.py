@@ -42,10 +42,10 @@ class FrameStreamer(TraceRecorder):
     def start(self, world: Any, seed: int, scenario: str | None = None) -> None:
         self._last = time.monotonic()
 
-    def _send(self, observation: Any, decision: Any) -> None:
+    def _send(self, observation: Any, truth: Any, decision: Any) -> None:
         if self.stop.is_set():
             raise Stopped
-        self.conn.send(("frame", frame_of_observation(observation, decision, index=self.index)))
+        self.conn.send(("frame", frame_of_observation(observation, truth, decision, index=self.index)))
         self.index += 1
         if self.speed > 0.0:  # real time × speed: sleep what is left of this step's share
             wait = SIM_STEP_S / self.speed - (time.monotonic() - self._last)
@@ -53,12 +53,12 @@ class FrameStreamer(TraceRecorder):
                 time.sleep(wait)
         self._last = time.monotonic()
 
-    def record(self, observation: Any = None, decision: Any = None, /, **step: Any) -> None:
-        self._send(observation, decision)
+    def record(self, observation: Any = None, decision: Any = None, truth: Any = None, /, **step: Any) -> None:
+        self._send(observation, truth, decision)
 
-    def finish(self, observation: Any = None, outcome: Any = None, /, **result: Any) -> None:
+    def finish(self, observation: Any = None, outcome: Any = None, truth: Any = None, /, **result: Any) -> None:
         if observation is not None:
-            self._send(observation, None)
+            self._send(observation, truth, None)
 
 
 def main(conn: Any, stop: Any, go: Any, job: dict[str, Any]) -> None:

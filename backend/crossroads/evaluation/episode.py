@@ -16,7 +16,7 @@ from crossroads.evaluation.sumo_driver import SumoDriverPolicy
 from crossroads.evaluation.near_miss import NearMissTracker
 from crossroads.evaluation.trace import TraceRecorder
 from crossroads.idc.controller import Controller
-from crossroads.sim.observation import Observation
+from crossroads.sim.observation import GroundTruth, Observation
 from crossroads.sim.outcome import Outcome
 from crossroads.sim.world import World
 
@@ -49,8 +49,9 @@ class EpisodeResult:
         return asdict(self)
 
 
-def _closest_distance(observation: Observation) -> float:
-    snap = observation.participants
+def _closest_distance(observation: Observation, truth: GroundTruth) -> float:
+    """[m] the closest true centre distance from the ego to any other participant."""
+    snap = truth.participants
     if len(snap) == 0:
         return float("inf")
     return float(np.min(np.hypot(snap.x - observation.ego[0], snap.y - observation.ego[1])))
@@ -75,9 +76,9 @@ def run_episode(
     if recorder is not None:
         recorder.start(world, seed, scenario=scenario_name)
     events: list[dict[str, Any]] = []
-    min_distance = _closest_distance(observation)
+    min_distance = _closest_distance(observation, world.truth)
     near_miss = NearMissTracker()
-    near_miss.update(observation)
+    near_miss.update(observation, world.truth)
     last_mode = last_path = None
     last_shield = False  # a shielded run starts with the shield off: its first event is it braking
     outcome: Outcome | None = None
@@ -97,11 +98,11 @@ def run_episode(
                            "value": decision.shield_braking})
             last_shield = decision.shield_braking
         if recorder is not None:
-            recorder.record(observation, decision)
+            recorder.record(observation, decision, world.truth)
         observation, outcome = world.step(None if sumo_drives else decision.action)
         steps += 1
-        min_distance = min(min_distance, _closest_distance(observation))
-        near_miss.update(observation)
+        min_distance = min(min_distance, _closest_distance(observation, world.truth))
+        near_miss.update(observation, world.truth)
     crossed = world.stop_line_crossed_s
     travel = outcome.time_s - crossed if outcome.kind == "passed" and crossed is not None else None
     events.extend(world.events)  # the world's own: gridlock removals
@@ -111,7 +112,7 @@ def run_episode(
                        "value": outcome.blocked_by.to_json()})
     events.append({"t": round(outcome.time_s, 2), "event": "outcome", "value": outcome.kind})
     if recorder is not None:  # the trace keeps the episode's events for the playback
-        recorder.finish(observation, outcome, events=events)
+        recorder.finish(observation, outcome, world.truth, events=events)
     return EpisodeResult(
         seed=seed,
         outcome=outcome.kind,

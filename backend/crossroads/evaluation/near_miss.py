@@ -28,7 +28,7 @@ import math
 import numpy as np
 
 from crossroads.constants import ACCEL_MIN, EGO_LENGTH_M, EGO_WIDTH_M
-from crossroads.sim.observation import Observation
+from crossroads.sim.observation import GroundTruth, Observation
 
 GAP_RANGE_M = 30.0  # [m] centre distance beyond which a participant is not measured for the gap
 TTC_RANGE_M = 50.0  # [m] centre distance beyond which a participant is not looked at for a TTC
@@ -46,10 +46,11 @@ class NearMissTracker:
         self.min_ttc_s = math.inf
         self.red_stop_margin_m = math.inf
 
-    def update(self, observation: Observation) -> None:
+    def update(self, observation: Observation, truth: GroundTruth) -> None:
+        """Take in one step: the ego and its light from ``observation``, the others' true state."""
         ego = observation.ego
         x, y, heading = float(ego[0]), float(ego[1]), float(ego[4])
-        snap = observation.participants
+        snap = truth.participants
         if len(snap):
             dx, dy = snap.x - x, snap.y - y
             distance = np.hypot(dx, dy)

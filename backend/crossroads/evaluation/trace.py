@@ -292,8 +292,9 @@ class TraceRecorder:
 
     # --- steps ------------------------------------------------------------------------------------
 
-    def record(self, observation: Any = None, decision: Any = None, /, **step: Any) -> None:
-        """Append one step: ``record(observation, decision)`` (world objects) or keywords.
+    def record(self, observation: Any = None, decision: Any = None, truth: Any = None, /, **step: Any) -> None:
+        """Append one step: ``record(observation, decision, truth)`` (world objects: the
+        controller's Observation and Decision, the world's GroundTruth) or keywords.
 
         Keywords (arrays are anything ``numpy.asarray`` takes; n = participants this step):
 
@@ -318,8 +319,8 @@ class TraceRecorder:
         """
         if observation is not None:
             if step:
-                raise TypeError("record(): give either (observation, decision) or keywords, not both")
-            step = _step_of_observation(observation, decision)
+                raise TypeError("record(): give either (observation, decision, truth) or keywords, not both")
+            step = _step_of_observation(observation, truth, decision)
         self._record(**step)
 
     def _record(self, *, time_s: float, signal_state: str, light: str, light_remaining_s: float,
@@ -381,13 +382,13 @@ class TraceRecorder:
         r["obs"].append(obs)
         self._counts.append(n)
 
-    def finish(self, observation: Any = None, outcome: Any = None, /, **result: Any) -> None:
-        """End the episode. ``observation`` (optional): the state after the last step, recorded
-        as a frame without a decision (so a collision shows); ``outcome`` (optional): an object
-        with ``kind``, ``time_s``, ``detail``, ``other_kind`` (the world's Outcome) stored as
-        ``header["result"]``, updated by the keywords ``result``."""
+    def finish(self, observation: Any = None, outcome: Any = None, truth: Any = None, /, **result: Any) -> None:
+        """End the episode. ``observation`` and ``truth`` (optional): the state after the last
+        step, recorded as a frame without a decision (so a collision shows); ``outcome``
+        (optional): an object with ``kind``, ``time_s``, ``detail``, ``other_kind`` (the world's
+        Outcome) stored as ``header["result"]``, updated by the keywords ``result``."""
         if observation is not None:
-            self._record(**_step_of_observation(observation, None))
+            self._record(**_step_of_observation(observation, truth, None))
         info: dict[str, Any] = {}
         if outcome is not None:
             info = {key: getattr(outcome, key) for key in ("kind", "time_s", "detail", "other_kind")
@@ -435,10 +436,13 @@ class TraceRecorder:
         return Trace(dict(self._header), arrays)
 
 
-def _step_of_observation(observation: Any, decision: Any) -> dict[str, Any]:
-    """Keywords of :meth:`TraceRecorder.record` from a world Observation and a controller
-    Decision (duck-typed: :mod:`crossroads.sim.world`, :mod:`crossroads.idc.controller`)."""
-    snap = observation.participants
+def _step_of_observation(observation: Any, truth: Any, decision: Any) -> dict[str, Any]:
+    """Keywords of :meth:`TraceRecorder.record` from a world Observation and GroundTruth and a
+    controller Decision (duck-typed: :mod:`crossroads.sim.observation`,
+    :mod:`crossroads.idc.controller`)."""
+    if truth is None:
+        raise TypeError("record(observation, decision, truth): the trace keeps the true state (World.truth)")
+    snap = truth.participants
     n = len(snap.ids)
     perceived = np.zeros(n, dtype=bool)
     obs = np.zeros((n, OTHER_STATE_DIM), dtype=np.float32)
@@ -446,7 +450,7 @@ def _step_of_observation(observation: Any, decision: Any) -> dict[str, Any]:
     if len(rows):
         perceived[rows] = True
         obs[rows] = np.asarray(observation.perceived.observations, dtype=np.float32)
-    abnormal_ids = observation.abnormal_ids
+    abnormal_ids = truth.abnormal_ids
     abnormal = np.array([str(i) in abnormal_ids for i in snap.ids], dtype=bool)
     light = observation.light
     return {

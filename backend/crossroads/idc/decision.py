@@ -4,7 +4,7 @@ Every step: the traffic-light logic picks the speed mode; the state of every can
 built in that mode and the batch goes through the value network; the path of least value is
 τ* = argmin_τ v_w(s(τ)); the driving policy's mean action for s(τ*) is the command.
 
-The networks are plain torch modules (anything with the shapes of :mod:`crossroads.rl.networks`),
+The networks are plain torch modules (anything with the shapes of :mod:`crossroads.rl.neural_nets`),
 so this module does not depend on the training code: a trained model's networks are loaded by the
 caller (``load_controller`` of :mod:`crossroads.evaluation.policies`, through ``rl.checkpoint``).
 """

@@ -23,5 +23,7 @@ def observed_others(obs: Observation) -> tuple[np.ndarray, np.ndarray]:
     others = others_in_slots(obs.ego, seen.observations, slots)
     taken = slots >= 0
     kappa = np.zeros(N_OTHERS)  # pads: κ 0
-    kappa[taken] = participant_curvatures(obs.lane_shapes, obs.participants, seen.rows[slots[taken]])
+    chosen = slots[taken]
+    kappa[taken] = participant_curvatures(obs.lane_shapes, seen.lanes(chosen), seen.observations[chosen],
+                                          seen.kinds[chosen])
     return others, kappa

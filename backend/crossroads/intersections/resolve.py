@@ -10,7 +10,7 @@ from pathlib import Path
 
 from crossroads.intersections import catalogue
 from crossroads.network.junction import read_junction
-from crossroads.network.model import Junction
+from crossroads.network.road import Junction
 
 NET_SUFFIXES = (".net.xml", ".net.xml.gz")
 SPEC_SUFFIXES = (".yaml", ".yml")

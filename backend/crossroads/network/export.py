@@ -11,7 +11,7 @@ import numpy as np
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.base import BaseGeometry
 
-from crossroads.network.model import Approach, Junction, Lane
+from crossroads.network.road import Approach, Junction, Lane
 
 _DECIMALS = 2
 

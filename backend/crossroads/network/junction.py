@@ -48,7 +48,7 @@ from crossroads.geometry import (
     unit,
     wrap_angle,
 )
-from crossroads.network.model import (
+from crossroads.network.road import (
     SUMO_DIR_TO_TURN,
     Approach,
     Connection,

@@ -28,7 +28,7 @@ from shapely.geometry.base import BaseGeometry
 
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M
 from crossroads.geometry import FloatArray
-from crossroads.network.model import Approach, Junction
+from crossroads.network.road import Approach, Junction
 
 ROAD_MARGIN_M = 0.5  # [m] a footprint corner may overhang the drivable area this much
 FOREIGN_LANE_DEPTH_M = 0.25  # [m] how far inside another approach's entrance lane counts as on it

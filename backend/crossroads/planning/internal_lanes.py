@@ -17,7 +17,7 @@ import numpy as np
 
 from crossroads.constants import INTERNAL_LANE_OFFSET_WARN_M
 from crossroads.geometry import FloatArray, distances_to_polyline, hausdorff_distance
-from crossroads.network.model import TASKS, Approach, Connection, Junction
+from crossroads.network.road import TASKS, Approach, Connection, Junction
 from crossroads.planning.drivable import road_check
 from crossroads.planning.routes import CandidatePath, PlanningError, build_candidate
 

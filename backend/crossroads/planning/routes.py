@@ -27,7 +27,7 @@ Choices (not in the paper):
 - **Route lengths.** X0 lies ``entrance_length_m`` = 50 m before X1: the 30 m of the stop-mode
   deceleration plus 20 m at cruise speed, more than the 25-step (2.5 s) prediction horizon covers
   at 0.8·V_limit (≈ 21 m). The entrance route runs over the lanes before the entrance lane where
-  that lane is shorter (the junction's lead-in, :class:`crossroads.network.model.LaneChain`): real
+  that lane is shorter (the junction's lead-in, :class:`crossroads.network.road.LaneChain`): real
   nets often end an approach edge 20 m before the stop line. X5 lies ``exit_length_m`` = 30 m after
   X4, again beyond that horizon, over the lanes after the exit lane where it is shorter (its
   lead-out: an OSM import may leave a 0.2 m stub); both clamped to where the road is traced.
@@ -74,7 +74,7 @@ from crossroads.geometry import (
     unit,
     wrap_angle,
 )
-from crossroads.network.model import TASKS, Approach, Connection, Junction, Lane
+from crossroads.network.road import TASKS, Approach, Connection, Junction, Lane
 from crossroads.planning.curves import CURVATURE_TOLERANCE, MAX_CURVATURE, rho_preferences
 from crossroads.planning.drivable import RoadCheck, road_check
 from crossroads.planning.speeds import pass_speed, stop_speed

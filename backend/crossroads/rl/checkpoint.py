@@ -30,7 +30,7 @@ import numpy as np
 import torch
 
 from crossroads.rl.config import TrainConfig
-from crossroads.rl.networks import Networks, networks_for
+from crossroads.rl.neural_nets import Networks, networks_for
 
 FORMAT = 1
 LAST = "last.pt"

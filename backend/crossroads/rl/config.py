@@ -30,7 +30,7 @@ from crossroads.constants import (
     TOTAL_ITERATIONS,
     VALUE_LR,
 )
-from crossroads.network.model import TASKS
+from crossroads.network.road import TASKS
 
 Algo = Literal["apg", "dpg"]
 XiPositions = Literal["offset", "step"]  # how ξ_x, ξ_y act over the model's horizon (rl.model)

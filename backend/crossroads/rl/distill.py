@@ -35,8 +35,8 @@ from crossroads.rl.buffer import Samples, to_batch
 from crossroads.rl.checkpoint import FORMAT, load_networks
 from crossroads.rl.config import TrainConfig, apply_overrides
 from crossroads.rl.export import changed_from_defaults, hardware, lineage
-from crossroads.rl.model import IDCModel
-from crossroads.rl.networks import Networks, networks_for, widen_first_layer
+from crossroads.rl.idc_model import IDCModel
+from crossroads.rl.neural_nets import Networks, networks_for, widen_first_layer
 from crossroads.rl.sampler import EpisodeSampler, PathSet, WorkerSpec, policy_weights
 
 ROLLOUT_STRIDE = 5  # (choice) every 5th rollout state: neighbours differ little, memory grows with each

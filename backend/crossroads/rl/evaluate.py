@@ -21,7 +21,7 @@ from crossroads.idc.constraints import penalty, road_constraints, safety_constra
 from crossroads.idc.state import build_states
 from crossroads.idc.utility import utility
 from crossroads.rl.config import TrainConfig
-from crossroads.rl.networks import Networks
+from crossroads.rl.neural_nets import Networks
 from crossroads.idc.observed import observed_others
 from crossroads.rl.sampler import net_file, speed_mode
 from crossroads.sim.config import WorldConfig

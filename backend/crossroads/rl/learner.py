@@ -27,8 +27,8 @@ from torch import Tensor, nn
 
 from crossroads.rl.buffer import StateBatch
 from crossroads.rl.config import TrainConfig
-from crossroads.rl.model import IDCModel, Rollout, policy_fns
-from crossroads.rl.networks import Networks, networks_for
+from crossroads.rl.idc_model import IDCModel, Rollout, policy_fns
+from crossroads.rl.neural_nets import Networks, networks_for
 
 
 @dataclass

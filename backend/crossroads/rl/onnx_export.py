@@ -18,7 +18,7 @@ import torch
 from torch import nn
 
 from crossroads.rl.checkpoint import load_networks
-from crossroads.rl.networks import input_width
+from crossroads.rl.neural_nets import input_width
 
 OPSET = 17
 # Accepted difference, relative to max(1, |torch|): both run in float32 (~7 significant digits), so

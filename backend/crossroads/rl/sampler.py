@@ -154,7 +154,7 @@ class EpisodeSampler:
     def __init__(self, spec: WorkerSpec, worker_id: int) -> None:
         import torch
 
-        from crossroads.rl.networks import DrivingPolicy
+        from crossroads.rl.neural_nets import DrivingPolicy
 
         self.config = spec.config
         self.worker_id = worker_id

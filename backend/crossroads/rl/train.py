@@ -36,8 +36,8 @@ from crossroads.rl.config import TrainConfig, save_config
 from crossroads.rl.evaluate import evaluate_tar
 from crossroads.rl.learner import Learner
 from crossroads.rl.logging import MetricsLogger, Progress
-from crossroads.rl.model import IDCModel
-from crossroads.rl.networks import widen_first_layer
+from crossroads.rl.idc_model import IDCModel
+from crossroads.rl.neural_nets import widen_first_layer
 from crossroads.rl.sampler import PathSet, PolicyWeights, make_sampler, policy_weights
 
 RUNTIME_FIELDS = ("workers", "ray_address", "device", "torch_threads", "progress", "tensorboard")

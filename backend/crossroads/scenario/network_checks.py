@@ -20,7 +20,7 @@ from typing import Any
 
 from crossroads.intersections.resolve import NetworkNotFoundError, open_junction
 from crossroads.network.junction import JunctionError
-from crossroads.network.model import Approach, Junction
+from crossroads.network.road import Approach, Junction
 from crossroads.planning import PlanningError, plan_candidates
 from crossroads.planning.internal_lanes import internal_lane_offsets, offset_warning
 from crossroads.scenario.spec import ScenarioSpec, net_path

@@ -33,7 +33,7 @@ from crossroads.geometry import (
     bezier_control_points_closed_form,
     sample_cubic_bezier,
 )
-from crossroads.network.model import Approach, Junction
+from crossroads.network.road import Approach, Junction
 from crossroads.sim.sumo import SumoSession
 
 ROUNDING_RHO = 0.9  # [-] (choice) ρ of the rounding curve: close to the chord, it cuts the corner

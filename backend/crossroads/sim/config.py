@@ -19,7 +19,7 @@ from crossroads.constants import (
     V_LIMIT_MPS,
     YELLOW_S,
 )
-from crossroads.network.model import Turn
+from crossroads.network.road import Turn
 from crossroads.sim.abnormal import AbnormalConfig
 from crossroads.sim.traffic import TrafficDemand
 

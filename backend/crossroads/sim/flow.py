@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from crossroads.constants import SIM_STEP_S
-from crossroads.network.model import Junction
+from crossroads.network.road import Junction
 from crossroads.sim.gridlock import GridlockBreaker
 from crossroads.sim.sumo import SumoSession
 from crossroads.sim.traffic import TrafficDemand, build_plan, write_plan

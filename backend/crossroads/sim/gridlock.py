@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from crossroads.network.model import Junction
+from crossroads.network.road import Junction
 from crossroads.sim.sumo import SumoSession
 
 CHECK_EVERY_S = 1.0  # [s] how often the breaker looks

@@ -1,16 +1,21 @@
 """What a controller sees after each step: the :class:`Observation` (the control contract).
 
 The world (:class:`crossroads.sim.world.World`) fills it; controllers (``crossroads.idc``, plugins,
-ONNX policies) read it. These are plain data types with no libsumo import, so a controller can be
-imported, built and tested without SUMO.
+ONNX policies) read it. It holds what the ego's sensors and map give (the ego's own state, the
+light, the participants the sensors cover with their noise and the lane the map matches each to,
+the candidate paths and the static map) and nothing of the world's true state: that is the
+:class:`GroundTruth` beside it (``World.truth``), which the judge, the trace and the viewer read.
+These are plain data types with no libsumo import, so a controller can be imported, built and
+tested without SUMO.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 from shapely.geometry import Polygon
 
 from crossroads.geometry import FloatArray
@@ -29,26 +34,43 @@ class LightView:
     state: str  # the whole tlLogic state string (every link), for drawing
 
 
+def unmatched_lanes(indices: NDArray[np.intp]) -> NDArray[np.str_]:
+    """No map matching: every participant on no known lane ("")."""
+    return np.full(len(indices), "", dtype=np.str_)
+
+
 @dataclass(frozen=True)
 class Perceived:
     """The participants the ego's sensors cover, with the noisy observation of each."""
 
-    rows: np.ndarray  # indices into the snapshot
+    rows: np.ndarray  # the sensors' track of each: its row in the world's GroundTruth snapshot
     kinds: np.ndarray  # "vehicle" | "cyclist" | "pedestrian"
     observations: FloatArray  # (n, 6): [p_x, p_y, v, φ, L, W], world frame, noisy
+    lanes: Callable[[NDArray[np.intp]], NDArray[np.str_]] = unmatched_lanes
+    """The SUMO lane the map matching puts each of the given perceived participants on (indices
+    into ``observations``; "" where none). Asked for a few participants only, in the same step:
+    reading a lane costs a call into SUMO."""
+
+
+@dataclass(frozen=True)
+class GroundTruth:
+    """The world's true state after a step, which no controller gets: for the judge, the trace,
+    the near-miss figures and the viewer."""
+
+    participants: Snapshot  # true state of everyone but the ego
+    abnormal_ids: frozenset[str]  # the over-speeding and rounding vehicles alive
 
 
 @dataclass(frozen=True)
 class Observation:
-    """What a controller may look at after a step (the true snapshot is for the trace and judge)."""
+    """What a controller may look at after a step: the ego, the light, what the sensors cover and
+    the map (module docstring)."""
 
     time_s: float  # [s] since the ego entered
     ego: FloatArray  # (8,) [p_x, p_y, v_x, v_y, φ, ω, δ, a]
     light: LightView
     distance_to_stop_line_m: float  # [m] of the ego's front bumper; negative once past it
     front_vehicle_stopped_s: float  # [s] the vehicle ahead has been standing (0 if none/moving)
-    participants: Snapshot  # true state of everyone but the ego
-    abnormal_ids: frozenset[str]
     perceived: Perceived
     candidates: tuple[CandidatePath, ...]
     # lane centre lines by SUMO lane id (the junction's internal lanes included): static map
@@ -64,12 +86,14 @@ class Observation:
         return self.distance_to_stop_line_m < 0.0
 
 
-def participant_curvatures(lane_shapes: Mapping[str, FloatArray], snap: Snapshot, rows: np.ndarray) -> FloatArray:
-    """Signed curvature 1/R [1/m] of the participants at ``rows`` of ``snap``, from their lane and
-    position (0 on lanes ``lane_shapes`` does not describe, and for pedestrians): the R of f_other."""
-    kappa = np.zeros(len(rows))
-    for k, row in enumerate(rows):
-        shape = lane_shapes.get(str(snap.lane_id[row]))
-        if shape is not None and snap.kind[row] != "pedestrian":
-            kappa[k] = route_curvature(shape, float(snap.x[row]), float(snap.y[row]))
+def participant_curvatures(lane_shapes: Mapping[str, FloatArray], lanes: Sequence[str],
+                           observations: FloatArray, kinds: Sequence[str]) -> FloatArray:
+    """Signed curvature 1/R [1/m] of perceived participants (the R of f_other), from the lane the
+    map matches each to and its observed position (rows ``[p_x, p_y, ...]``): 0 on lanes
+    ``lane_shapes`` does not describe, and for pedestrians."""
+    kappa = np.zeros(len(lanes))
+    for k, lane in enumerate(lanes):
+        shape = lane_shapes.get(str(lane))
+        if shape is not None and kinds[k] != "pedestrian":
+            kappa[k] = route_curvature(shape, float(observations[k][0]), float(observations[k][1]))
     return kappa

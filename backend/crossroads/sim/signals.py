@@ -26,7 +26,7 @@ from typing import IO, TYPE_CHECKING, Literal
 from crossroads.network.netxml import open_net
 
 if TYPE_CHECKING:  # only for type hints: signals.py itself never needs SUMO running
-    from crossroads.network.model import Approach
+    from crossroads.network.road import Approach
     from crossroads.sim.sumo import SumoSession
 
 Light = Literal["green", "yellow", "red"]

@@ -3,7 +3,7 @@
 Real nets often end an approach edge 20 m before the stop line (a node where a lane is added, a
 previous junction), shorter than the default start of 40 m. The ego then starts that far before
 the line along its route, on the edges before its entrance lane (the junction's lead-in,
-:class:`crossroads.network.model.LaneChain`), and SUMO routes it from there. Only a network that is
+:class:`crossroads.network.road.LaneChain`), and SUMO routes it from there. Only a network that is
 itself too short is refused, naming the longest start that fits.
 
 One rule for every caller: ``crossroads run`` and ``evaluate``, the API and the studio check it
@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 from crossroads.constants import EGO_LENGTH_M
 from crossroads.geometry import point_at
-from crossroads.network.model import Junction
+from crossroads.network.road import Junction
 
 
 class StartError(ValueError):

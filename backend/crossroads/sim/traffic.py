@@ -40,7 +40,7 @@ from crossroads.constants import (
     PEDESTRIANS_PER_HOUR_PER_LANE,
     VEHICLES_PER_HOUR_PER_LANE,
 )
-from crossroads.network.model import TASKS, Approach, Junction
+from crossroads.network.road import TASKS, Approach, Junction
 from crossroads.network.netxml import internal_edge_owner, read_net_xml
 
 log = logging.getLogger(__name__)

@@ -25,7 +25,7 @@ from shapely.geometry import LineString, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from crossroads.geometry import polygons_of, arc_lengths, point_at
-from crossroads.network.model import Junction, Lane
+from crossroads.network.road import Junction, Lane
 from crossroads.planning.routes import CandidatePath
 
 ASPHALT = "#5b5b5b"

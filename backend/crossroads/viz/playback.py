@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from crossroads.evaluation.trace import SPEED_MODES, Trace
-from crossroads.network.model import Junction
+from crossroads.network.road import Junction
 from crossroads.viz.viewer import Viewer, collided_id
 from crossroads.viz.views import ViewControls
 

@@ -1,7 +1,7 @@
 """A Junction as 3D drawing data for the viser view: triangle meshes, line segments, signal heads.
 
 Pure geometry (numpy + shapely, no viser): :func:`junction_scene` turns a
-:class:`~crossroads.network.model.Junction` into a :class:`SceneData` the viewer hands to viser
+:class:`~crossroads.network.road.Junction` into a :class:`SceneData` the viewer hands to viser
 as it is. Everything is in SUMO's network frame [m] (x east, y north) with z up; the layers sit
 a few centimetres apart so they never z-fight:
 
@@ -30,7 +30,7 @@ from shapely.geometry import LineString
 from shapely.geometry.base import BaseGeometry
 
 from crossroads.geometry import polygons_of, arc_lengths, point_at
-from crossroads.network.model import Junction, Lane
+from crossroads.network.road import Junction, Lane
 from crossroads.perception.sensors import Sensor, sector_polygon
 
 # Heights [m] of the layers (z up).

@@ -39,7 +39,7 @@ import numpy as np
 
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M
 from crossroads.evaluation.trace import TraceRecorder
-from crossroads.network.model import Junction
+from crossroads.network.road import Junction
 from crossroads.perception.sensors import DEFAULT_SENSORS, Sensor
 from crossroads.viz.camera import camera_pose
 from crossroads.viz.scene import SceneData, head_colour, junction_scene, sector_mesh
@@ -484,11 +484,13 @@ def collided_id(result: Mapping[str, Any]) -> str | None:
     return found["id"] if found else None
 
 
-def frame_of_observation(observation: Any, decision: Any = None, index: int | None = None) -> dict[str, Any]:
-    """A live world's Observation (and the controller's Decision) as a :meth:`Trace.frame` dict."""
-    snap = observation.participants
+def frame_of_observation(observation: Any, truth: Any, decision: Any = None,
+                         index: int | None = None) -> dict[str, Any]:
+    """A live world's Observation and GroundTruth (and the controller's Decision) as a
+    :meth:`Trace.frame` dict."""
+    snap = truth.participants
     rows = {int(r) for r in np.asarray(observation.perceived.rows).reshape(-1)}
-    abnormal = observation.abnormal_ids
+    abnormal = truth.abnormal_ids
     participants = [
         {"id": str(snap.ids[j]), "kind": str(snap.kind[j]), "x": float(snap.x[j]),
          "y": float(snap.y[j]), "heading": float(snap.heading[j]), "speed": float(snap.speed[j]),
@@ -530,23 +532,23 @@ class LiveRecorder(TraceRecorder):
         self.viewer.mark_collision(None)
         self.viewer.set_candidates(self._header.get("candidates", ()))
 
-    def _show(self, observation: Any, decision: Any) -> None:
-        self.viewer.show_frame(frame_of_observation(observation, decision, index=len(self) - 1))
+    def _show(self, observation: Any, truth: Any, decision: Any) -> None:
+        self.viewer.show_frame(frame_of_observation(observation, truth, decision, index=len(self) - 1))
         if self.realtime > 0.0:
             wait = self._header.get("dt_s", 0.1) / self.realtime - (time.monotonic() - self._last)
             if wait > 0:
                 time.sleep(wait)
             self._last = time.monotonic()
 
-    def record(self, observation: Any = None, decision: Any = None, /, **step: Any) -> None:
-        super().record(observation, decision, **step)
+    def record(self, observation: Any = None, decision: Any = None, truth: Any = None, /, **step: Any) -> None:
+        super().record(observation, decision, truth, **step)
         if observation is not None:
-            self._show(observation, decision)
+            self._show(observation, truth, decision)
 
-    def finish(self, observation: Any = None, outcome: Any = None, /, **result: Any) -> None:
-        super().finish(observation, outcome, **result)
+    def finish(self, observation: Any = None, outcome: Any = None, truth: Any = None, /, **result: Any) -> None:
+        super().finish(observation, outcome, truth, **result)
         if outcome is not None:
             self.viewer.mark_collision(collided_id({"kind": getattr(outcome, "kind", None),
                                                     "detail": getattr(outcome, "detail", "")}))
         if observation is not None:
-            self._show(observation, None)
+            self._show(observation, truth, None)

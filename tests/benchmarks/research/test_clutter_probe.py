@@ -12,8 +12,8 @@ from support import REPO_ROOT
 from crossroads.idc.decision import IdcController
 from crossroads.idc.state import pad_participant, path_tensors
 from crossroads.rl.buffer import Samples
-from crossroads.rl.model import IDCModel
-from crossroads.rl.networks import make_networks
+from crossroads.rl.idc_model import IDCModel
+from crossroads.rl.neural_nets import make_networks
 from crossroads.rl.sampler import PathSet
 
 sys.path.insert(0, str(REPO_ROOT / "benchmarks" / "research"))

@@ -11,7 +11,7 @@ import torch
 from support import REPO_ROOT
 
 from crossroads.intersections import catalogue
-from crossroads.rl.networks import make_networks
+from crossroads.rl.neural_nets import make_networks
 from crossroads.sim.config import EgoStart, WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC
 from crossroads.sim.world import World
@@ -21,27 +21,28 @@ from probing import ModelOptimumController, timeout_cause  # noqa: E402
 
 
 def ending_at(stood_s: float, past_stop_line: bool, ego_speed: float,
-              others: list[tuple[float, float, float, str]]) -> SimpleNamespace:
-    """The last observation's fields ``timeout_cause`` reads: the ego at the origin heading +y, and
-    participants (x, y, speed, kind)."""
+              others: list[tuple[float, float, float, str]]) -> tuple[SimpleNamespace, SimpleNamespace]:
+    """The last observation's and true state's fields ``timeout_cause`` reads: the ego at the
+    origin heading +y, and participants (x, y, speed, kind)."""
     x, y, speed, kind = (np.array(column) for column in zip(*others, strict=True)) if others else ([],) * 4
     snap = SimpleNamespace(x=np.asarray(x, float), y=np.asarray(y, float), speed=np.asarray(speed, float),
                            kind=np.asarray(kind, str))
     ego = np.array([0.0, 0.0, ego_speed, 0.0, np.pi / 2, 0.0, 0.0, 0.0])
-    return SimpleNamespace(front_vehicle_stopped_s=stood_s, past_stop_line=past_stop_line, ego=ego, participants=snap)
+    return (SimpleNamespace(front_vehicle_stopped_s=stood_s, past_stop_line=past_stop_line, ego=ego),
+            SimpleNamespace(participants=snap))
 
 
 def test_a_timeout_is_told_apart_by_what_held_the_ego() -> None:
     """The world's gridlocks (a vehicle ahead standing ≥ 30 s) apart from shorter queues, and without
     a standing leader, where the ego was and the closest participant in its way (not one behind or
     beside it, nor one beyond 10 m)."""
-    assert timeout_cause(ending_at(45.0, False, 0.0, [])) == "behind a vehicle standing ≥ 30 s"
-    assert timeout_cause(ending_at(4.0, False, 0.0, [])) == "behind a vehicle standing < 30 s"
+    assert timeout_cause(*ending_at(45.0, False, 0.0, [])) == "behind a vehicle standing ≥ 30 s"
+    assert timeout_cause(*ending_at(4.0, False, 0.0, [])) == "behind a vehicle standing < 30 s"
     walkers = [(0.5, 6.0, 0.0, "vehicle"), (-1.0, 4.0, 1.2, "pedestrian"), (0.0, -5.0, 0.0, "vehicle")]
-    assert timeout_cause(ending_at(0.0, True, 0.1, walkers)) == "inside the junction, ego standing, a moving pedestrian ahead"
+    assert timeout_cause(*ending_at(0.0, True, 0.1, walkers)) == "inside the junction, ego standing, a moving pedestrian ahead"
     aside = [(3.0, 4.0, 0.0, "vehicle"), (0.0, 12.0, 0.0, "vehicle"), (0.0, -3.0, 0.0, "cyclist")]
-    assert timeout_cause(ending_at(0.0, False, 2.0, aside)) == "before the stop line, ego moving, nothing within 10 m ahead"
-    assert timeout_cause(ending_at(0.0, False, 0.0, [])) == "before the stop line, ego standing, nothing within 10 m ahead"
+    assert timeout_cause(*ending_at(0.0, False, 2.0, aside)) == "before the stop line, ego moving, nothing within 10 m ahead"
+    assert timeout_cause(*ending_at(0.0, False, 0.0, [])) == "before the stop line, ego standing, nothing within 10 m ahead"
 
 
 def test_the_model_optimum_tracks_an_empty_straight_road_an_untrained_policy_does_not() -> None:

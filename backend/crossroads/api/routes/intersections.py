@@ -25,7 +25,7 @@ from crossroads.intersections import catalogue
 from crossroads.network.export import junction_geometry
 from crossroads.geometry import FloatArray
 from crossroads.network.junction import JunctionError, read_junction
-from crossroads.network.model import Junction
+from crossroads.network.road import Junction
 from crossroads.network.netxml import TRAFFIC_LIGHT_TYPES, read_net_xml
 from crossroads.intersections.resolve import open_junction
 from crossroads.planning import CandidatePath, PlanningError, plan_candidates

@@ -44,7 +44,7 @@ from crossroads.api.routes.intersections import (
 from crossroads.constants import RHO_BEZIER
 from crossroads.network.export import junction_geometry
 from crossroads.network.junction import JunctionError, read_junction
-from crossroads.network.model import Junction
+from crossroads.network.road import Junction
 from crossroads.intersections.resolve import open_junction
 
 router = APIRouter(prefix="/intersections", tags=["intersections"])

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from crossroads.constants import JERK_MAX, STATE_DIM, STEER_RATE_MAX, XI_RANGES
-from crossroads.rl.networks import XI_KEYS, Adversary, DrivingPolicy, ValueNet, make_networks
+from crossroads.rl.neural_nets import XI_KEYS, Adversary, DrivingPolicy, ValueNet, make_networks
 
 torch.manual_seed(0)
 POLICY = DrivingPolicy(2, 32)
@@ -80,7 +80,7 @@ def test_widening_places_each_input_block_and_refuses_to_drop_one() -> None:
     import pytest
 
     from crossroads.constants import LEAD_DIM, PREVIEW_DIM
-    from crossroads.rl.networks import network_width, widen_first_layer
+    from crossroads.rl.neural_nets import network_width, widen_first_layer
 
     assert network_width(False) == STATE_DIM and network_width(True, True) == STATE_DIM + PREVIEW_DIM + LEAD_DIM
     rng = np.random.default_rng(4)
@@ -109,7 +109,7 @@ def test_participant_pooling_reads_every_slot_of_a_kind_alike() -> None:
     import pytest
 
     from crossroads.constants import PREVIEW_DIM
-    from crossroads.rl.networks import trunk_width, widen_first_layer
+    from crossroads.rl.neural_nets import trunk_width, widen_first_layer
 
     torch.manual_seed(2)
     nets = make_networks("apg", 2, 32, preview=True, lead=True, encoder=16)

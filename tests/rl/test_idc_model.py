@@ -13,7 +13,7 @@ from crossroads.idc.state import OTHERS, PathTensors, path_tensors, reference_po
 from crossroads.idc.utility import utility
 from crossroads.intersections import catalogue
 from crossroads.rl.buffer import StateBatch
-from crossroads.rl.model import IDCModel
+from crossroads.rl.idc_model import IDCModel
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.ego import ego_step
 from crossroads.sim.other import other_step
