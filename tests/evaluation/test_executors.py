@@ -83,3 +83,30 @@ def test_a_forked_episode_reports_as_an_unforked_one() -> None:
     finally:
         forked.close()
         here.close()
+
+
+def _write_then_hang(marker: str, conn: object, scratch: str) -> None:
+    """A worker process that writes a temporary file, says where, and never returns."""
+    import tempfile
+    import time
+
+    from crossroads.evaluation.executors import adopt_scratch_dir
+
+    adopt_scratch_dir(scratch)
+    handle, path = tempfile.mkstemp(prefix=marker)
+    conn.send(path)  # type: ignore[attr-defined]
+    time.sleep(3600)
+
+
+def test_a_killed_worker_leaves_no_temporary_files() -> None:
+    """A worker killed mid-episode (a run past its wall-clock limit, a cancelled batch) cannot
+    remove its World's files; its scratch directory goes with it."""
+    import multiprocessing as mp
+
+    from crossroads.evaluation.executors import WorkerProcess
+
+    worker = WorkerProcess(mp.get_context("fork"), _write_then_hang, ("crossroads-test-",), "test-worker")
+    path = Path(worker.conn.recv())
+    assert path.exists() and path.parent == Path(worker.scratch)
+    worker.stop(force=True)
+    assert not worker.alive() and not Path(worker.scratch).exists()

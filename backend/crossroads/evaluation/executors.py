@@ -23,8 +23,10 @@ import hashlib
 import multiprocessing as mp
 import os
 import pickle
+import shutil
 import signal
 import sys
+import tempfile
 import threading
 import time
 import traceback
@@ -318,11 +320,19 @@ def _overran(task: EpisodeTask, who: str, limit_s: float) -> EpisodeReport:
 # --- local processes ----------------------------------------------------------------------------
 
 
-def _process_main(job: WorkerJob, conn: Connection) -> None:
+def adopt_scratch_dir(path: str) -> None:
+    """Make ``path`` this process's temporary directory (``tempfile.tempdir``, inherited by its
+    forked children): the World's files land there, and its coordinator removes it with the
+    process, even when it had to kill it (:class:`WorkerProcess`)."""
+    tempfile.tempdir = path
+
+
+def _process_main(job: WorkerJob, conn: Connection, scratch: str) -> None:
     """A worker process: receive tasks, send reports, until None or the pipe closes. With
     ``FORK_EPISODES`` each task is received, run and reported by a child forked for it, and this
     process only waits for the child: it tells the coordinator when a child died (:class:`ChildDied`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    adopt_scratch_dir(scratch)
     worker = EpisodeWorker(job)
     try:
         if not FORK_EPISODES:
@@ -369,21 +379,32 @@ def _episode_child(worker: EpisodeWorker, conn: Connection, parent: int) -> NoRe
         os._exit(status)
 
 
-class _Slot:
-    def __init__(self, ctx: Any, job: WorkerJob) -> None:
+STOP_WAIT_S = 5.0  # [s] a worker process told to stop gets this long before it is killed
+
+
+class WorkerProcess:
+    """One worker process, its pipe and its scratch directory. ``target(*args, conn, scratch)``
+    runs in the process; the scratch directory (its temporary files: the World's routes, SUMO's
+    outputs) is removed when the process is stopped, also when it had to be killed mid-episode,
+    when nothing in it could clean up after itself."""
+
+    def __init__(self, ctx: Any, target: Callable[..., None], args: tuple[Any, ...], name: str) -> None:
+        self.scratch = tempfile.mkdtemp(prefix="crossroads-worker-")
         self.conn, child = ctx.Pipe(duplex=True)
-        self.process = ctx.Process(target=_process_main, args=(job, child), daemon=True,
-                                   name="crossroads-episode-worker")
+        self.process = ctx.Process(target=target, args=(*args, child, self.scratch), daemon=True, name=name)
         self.process.start()
         child.close()
-        self.task: EpisodeTask | None = None
-        self.started = 0.0  # [s] time.monotonic() when the task was sent
 
     @property
     def who(self) -> str:
         return f"worker process {self.process.pid}"
 
+    def alive(self) -> bool:
+        return self.process.is_alive()
+
     def stop(self, *, force: bool) -> None:
+        """Ask the process to stop (None down its pipe), or kill it (``force``); kill it anyway
+        after STOP_WAIT_S; then remove its scratch directory."""
         if self.process.is_alive():
             if force:
                 self.process.kill()
@@ -392,11 +413,21 @@ class _Slot:
                     self.conn.send(None)
                 except OSError:
                     self.process.kill()
-        self.process.join(timeout=5.0)
+        self.process.join(timeout=STOP_WAIT_S)
         if self.process.is_alive():
             self.process.kill()
             self.process.join()
         self.conn.close()
+        shutil.rmtree(self.scratch, ignore_errors=True)
+
+
+class _Slot(WorkerProcess):
+    """A batch worker process and the task it runs."""
+
+    def __init__(self, ctx: Any, job: WorkerJob) -> None:
+        super().__init__(ctx, _process_main, (job,), "crossroads-episode-worker")
+        self.task: EpisodeTask | None = None
+        self.started = 0.0  # [s] time.monotonic() when the task was sent
 
 
 def _exit_reason(code: int | None) -> str:

@@ -45,14 +45,15 @@ from crossroads.evaluation.executors import (
     ExecutorError,
     ReportSink,
     WorkerJob,
+    WorkerProcess,
     _die_with_parent,
+    adopt_scratch_dir,
     _died,
     _exit_reason,
     _libc,
     _overran,
 )
 
-STOP_WAIT_S = 5.0  # [s] a worker told to stop gets this long before it is killed
 
 
 def _warm(policy_ref: str) -> None:
@@ -72,11 +73,12 @@ def _warm(policy_ref: str) -> None:
         sys.modules["torch"].set_num_threads(1)  # use torch: OpenMP's threads do not survive a fork
 
 
-def _pool_main(policy_ref: str, conn: Connection) -> None:
+def _pool_main(policy_ref: str, conn: Connection, scratch: str) -> None:
     """A long-lived worker: warm up, then fork one child per trial and wait for it, until a child
     is told to stop (or the coordinator's pipe closes). A child that dies without a report is told
     to the coordinator (:class:`ChildDied`); the next child takes the next trial."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the coordinator's to handle
+    adopt_scratch_dir(scratch)
     if sys.platform.startswith("linux"):
         _libc()  # loaded once here, not in every child
     _warm(policy_ref)
@@ -121,37 +123,15 @@ def _trial_child(conn: Connection, parent: int) -> NoReturn:
         os._exit(status)
 
 
-class _Worker:
-    """One long-lived worker process and its pipe."""
+class _Worker(WorkerProcess):
+    """One long-lived search worker process (:func:`_pool_main`) and its pipe."""
 
     def __init__(self, ctx: Any, policy_ref: str) -> None:
-        self.conn, child = ctx.Pipe(duplex=True)
-        self.process = ctx.Process(target=_pool_main, args=(policy_ref, child), daemon=True,
-                                   name="crossroads-search-worker")
-        self.process.start()
-        child.close()
+        super().__init__(ctx, _pool_main, (policy_ref,), "crossroads-search-worker")
 
     @property
     def who(self) -> str:
         return f"search worker process {self.process.pid}"
-
-    def alive(self) -> bool:
-        return self.process.is_alive()
-
-    def stop(self, *, force: bool) -> None:
-        if self.process.is_alive():
-            if force:
-                self.process.kill()
-            else:
-                try:
-                    self.conn.send(None)
-                except OSError:
-                    self.process.kill()
-        self.process.join(timeout=STOP_WAIT_S)
-        if self.process.is_alive():
-            self.process.kill()
-            self.process.join()
-        self.conn.close()
 
 
 class TrialPool:
