@@ -1,7 +1,7 @@
 """How strong an APG model's adversary is: can the driving policy escape it at all?
 
     .venv/bin/python benchmarks/research/adversary_strength.py scenarios/nominal/c_three_lane-left.yaml \
-        --policy models/apg.pt [--runs 6] [--every 15] [--xi-positions offset|step]
+        --policy models/apg.pt [--runs 6] [--every 15]
 
 Drives the scenario's first N seeded episodes with the model and, every ``--every`` steps, puts the
 state through the training model (T = 25) three ways — the policy's own plan, full braking
@@ -10,10 +10,10 @@ mean ξ, and prints J_safe of all six. Training draws ξ from the adversary's Ga
 taking its mean (``sample_actions``), so the last line repeats the count with ξ drawn, the median
 of ``--draws`` seeded draws per state and plan. A fair adversary leaves some plan with a low J_safe; when
 J_safe stays high whatever the ego does (even standing still), the minimax game cannot be won and
-the policy learns nothing about safety from it. ``--xi-positions`` picks how ξ_x, ξ_y act over the
-horizon (rl.model; default: the model's own training config). The last line gives the adversary's
+the policy learns nothing about safety from it (ξ_x, ξ_y act as the training model has them: a
+bounded offset of each predicted position, rl.idc_model). The last line gives the adversary's
 mean ξ_v for participants standing just ahead of the ego against all others: an adversary that
-speeds up a queue in front of the ego predicts a milder scene than ξ ≡ 0 (rl.model, nominal floor).
+speeds up a queue in front of the ego predicts a milder scene than ξ ≡ 0 (rl.idc_model, nominal floor).
 """
 
 from __future__ import annotations
@@ -32,7 +32,6 @@ from crossroads.idc.decision import IdcController  # noqa: E402
 from crossroads.idc.state import PAD_DISTANCE_M, path_tensors  # noqa: E402
 from crossroads.rl.buffer import Samples, to_batch  # noqa: E402
 from crossroads.rl.checkpoint import load_networks  # noqa: E402
-from crossroads.rl.config import XI_POSITION_MODES  # noqa: E402
 from crossroads.rl.idc_model import IDCModel  # noqa: E402
 from crossroads.rl.sampler import observation_sample  # noqa: E402
 from crossroads.sim.world import World  # noqa: E402
@@ -55,16 +54,14 @@ def standing_ahead(ego: np.ndarray, others: np.ndarray) -> np.ndarray:
 def main() -> None:
     parser = model_parser(__doc__.splitlines()[0], runs=6)
     parser.add_argument("--every", type=int, default=15, help="steps between probed states")
-    parser.add_argument("--xi-positions", choices=XI_POSITION_MODES, default=None)
     parser.add_argument("--draws", type=int, default=8, help="ξ draws per state and plan (median)")
     args = parser.parse_args()
     torch.set_num_threads(1)
 
-    networks, config = load_networks(Path(args.policy))
+    networks, _ = load_networks(Path(args.policy))
     if networks.adversary is None:
         parser.error(f"--policy: {args.policy} has no adversary (a DPG model?)")
     adversary = networks.adversary
-    xi_positions = args.xi_positions or config.xi_positions
     controller = IdcController(networks.policy, networks.value, name=Path(args.policy).stem)
     spec = load_scenario(args.scenario)
     rows: list[list[float]] = []  # per probed state: ξ≡0 then adversary, for each plan
@@ -74,8 +71,7 @@ def main() -> None:
     xi_v_rest: list[float] = []  # … of every other real (not padded) participant
     generator = torch.Generator().manual_seed(0)
     with World(to_world_config(spec, args.scenario.parent)) as world:
-        model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), xi_positions=xi_positions,
-                         preview=controller.preview)
+        model = IDCModel(path_tensors(world.candidates, dtype=torch.float32), preview=controller.preview)
         for obs, decision in probed_states(world, controller, run_seeds(spec, args.runs), args.every):
             sample = observation_sample(obs, int(decision.path_index), decision.speed_mode == "stop")
             batch = to_batch(sample)
@@ -103,7 +99,7 @@ def main() -> None:
 
     table = np.asarray(rows)
     speed = np.asarray(speeds)
-    print(f"policy {args.policy} (xi_positions={xi_positions}) on {args.scenario}: "
+    print(f"policy {args.policy} on {args.scenario}: "
           f"{len(rows)} states of {args.runs} seeded runs, every {args.every} steps")
     print(f"{'J_safe over 25 steps':<30}" + "".join(f"{name + ' ξ≡0':>16}{name + ' adv.':>16}" for name, _ in PLANS))
     for label, mask in (("all states", np.ones(len(speed), bool)), ("ego standing (< 0.5 m/s)", speed < 0.5),

@@ -16,7 +16,7 @@ IDC policy and prints:
   differentiable IDC model, T = 25 steps, ξ ≡ 0): J_safe of the policy's own plan (its mean action
   at every step) against J_safe of full braking (Δa = −JERK_MAX throughout);
 * for an APG model, J_safe of the policy's plan from the same states with the adversary's mean ξ,
-  as APG trained before the nominal floor (rl.model): an adversary that predicts a milder scene
+  as APG trained before the nominal floor (rl.idc_model): an adversary that predicts a milder scene
   than ξ ≡ 0 right before the collisions taught the policy that those scenes were safe.
 
 * J_π of the policy's plan against the model's own open-loop optimum from the same states (Adam on

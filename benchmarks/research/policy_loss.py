@@ -101,7 +101,7 @@ def main() -> None:
     paths = PathSet.build(base.intersections, base.tasks)
     sampler = EpisodeSampler(WorkerSpec(base, paths.keys), 0)
     samples = Samples.concat([sampler.round(r, None) for r in range(args.rounds)])
-    model = IDCModel(paths.tensors(), xi_positions=base.xi_positions, nominal_floor=base.nominal_floor)
+    model = IDCModel(paths.tensors(), nominal_floor=base.nominal_floor)
     probes = empty_road_states(paths)
     optima = [float(open_loop_optimum(model, b).j_track[0]) for b in probes]
 

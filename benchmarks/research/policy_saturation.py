@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/research/policy_saturation.py --policy models/apg.pt --policy models/dpg.pt
 
-The driving policy's action is tanh(z) mapped onto its range (``rl.networks``). Past |z| ≈ 2.5 the
+The driving policy's action is tanh(z) mapped onto its range (``rl.neural_nets``). Past |z| ≈ 2.5 the
 slope of tanh vanishes (1 − tanh²(3) = 0.01), so the model's gradient of J_π barely reaches such
 an output any more: a policy whose outputs sit there has stopped learning from those states. The
 states are those of the training sampler's world (``rl.sampler.EpisodeSampler``: random

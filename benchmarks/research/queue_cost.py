@@ -4,7 +4,7 @@
 
 The same scene as benchmarks/research/queue_response.py (``standing_car_scene``: a car standing on c_three_lane's straight path a
 bumper gap d ahead of the ego at speed v, pass mode, every other slot padded), but instead of
-driving it in closed loop this prints what the differentiable model (rl.model, with the braking
+driving it in closed loop this prints what the differentiable model (rl.idc_model, with the braking
 floor the shipped runs train with) charges over one horizon of T = 25 steps for three plans: the
 policy's mean actions, full braking (Δa = −4.5 m/s³ every step) and coasting (Δa = 0), as
 J = J_track + ρ J_safe with ρ = 15, once per ``--tail`` (the stopping tail's steps; 0 = the paper's

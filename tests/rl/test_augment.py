@@ -85,38 +85,3 @@ def test_stoppable_copies_stand_beyond_the_braking_distance(straight_path) -> No
     assert needed[0] == pytest.approx(14.09, abs=0.05) and needed[1] < braking_distance_m(5.0)
     np.testing.assert_allclose(gaps(beyond), gaps(bumper) + needed, atol=0.05)  # same draws, moved on
     assert np.all(gaps(beyond) > needed + 0.9)
-
-
-
-def test_neighbours_stand_in_the_queue_and_the_next_lanes_never_on_the_path_ahead(straight_path) -> None:
-    samples = _samples(straight_path, 4)
-    plain = standing_car_copies(samples, straight_path, 1.0, (5.0, 10.0), np.random.default_rng(5))
-    crowded = standing_car_copies(samples, straight_path, 1.0, (5.0, 10.0), np.random.default_rng(5), neighbours=4)
-    assert len(crowded.ego) == len(plain.ego) == 4
-    counts = []
-    for copy_ego, vehicles in zip(crowded.ego, crowded.others[:, KIND_ROWS["vehicle"]]):
-        standing = vehicles[(vehicles[:, 2] == 0.0) & (vehicles[:, 4] == CAR_LENGTH_M)]
-        counts.append(len(standing))
-        here = straight_path.project(float(copy_ego[0]), float(copy_ego[1]))
-        placed = [straight_path.project(float(x), float(y)) for x, y in standing[:, :2]]
-        on_path = sorted(p.s_m - here.s_m for p in placed if abs(p.lateral_m) < 0.1)
-        beside = [p for p in placed if abs(p.lateral_m) >= 0.1]
-        assert on_path[0] > 0.5 * (EGO_LENGTH_M + CAR_LENGTH_M) + 4.9  # the car ahead, at the drawn gap
-        for behind in on_path[1:]:  # queued behind it, a car length and 1-3 m further
-            assert behind - on_path[0] == pytest.approx(CAR_LENGTH_M + 2.0, abs=1.05)
-        assert all(abs(abs(p.lateral_m) - 3.5) < 0.05 for p in beside)
-        distances = np.hypot(vehicles[:, 0] - copy_ego[0], vehicles[:, 1] - copy_ego[1])
-        assert np.all(np.diff(distances) >= 0.0)
-    assert max(counts) > 1 and all(1 <= c <= 5 for c in counts)
-
-
-def test_neighbours_are_repeatable_and_zero_draws_nothing_more(straight_path) -> None:
-    samples = _samples(straight_path, 5)
-    a = standing_car_copies(samples, straight_path, 1.0, (1.0, 9.0), np.random.default_rng(2), neighbours=3)
-    b = standing_car_copies(samples, straight_path, 1.0, (1.0, 9.0), np.random.default_rng(2), neighbours=3)
-    np.testing.assert_array_equal(a.others, b.others)
-    rng = np.random.default_rng(2)
-    standing_car_copies(samples, straight_path, 1.0, (1.0, 9.0), rng, neighbours=0)
-    fresh = np.random.default_rng(2)
-    standing_car_copies(samples, straight_path, 1.0, (1.0, 9.0), fresh)
-    assert rng.random() == fresh.random()

@@ -25,9 +25,9 @@ from rl.rl_support import make_batch
 T = 5
 
 
-def numpy_rollout(path_set, ego, others, kappa, path, stop, actions, xis, xi_positions="step"):
-    """One sample, step by step with the numpy world functions. ``xi_positions="offset"``: ξ_x, ξ_y
-    displace each step's positions from a course that only ξ_v, ξ_φ drive."""
+def numpy_rollout(path_set, ego, others, kappa, path, stop, actions, xis):
+    """One sample, step by step with the numpy world functions: ξ_x, ξ_y displace each step's
+    positions from a course that only ξ_v, ξ_φ drive."""
     c = path_set.candidates[path]
     speed = c.v_stop if stop else c.v_pass
 
@@ -42,12 +42,9 @@ def numpy_rollout(path_set, ego, others, kappa, path, stop, actions, xis, xi_pos
     for i in range(T):
         l, _ = utility(s, actions[i])
         ego = ego_step(ego, actions[i])
-        if xi_positions == "step":
-            others = other_step(others, kappa, xis[i])
-        else:
-            course = other_step(course, kappa, xis[i] * np.array([0.0, 0.0, 1.0, 1.0]))
-            others = course.copy()
-            others[:, :2] += xis[i][:, :2]
+        course = other_step(course, kappa, xis[i] * np.array([0.0, 0.0, 1.0, 1.0]))
+        others = course.copy()
+        others[:, :2] += xis[i][:, :2]
         s, ref = state(ego, others)
         g_safe = safety_constraints(s)
         g = np.concatenate([g_safe, road_constraints(s, ref.x, ref.y, ref.heading)])
@@ -57,10 +54,9 @@ def numpy_rollout(path_set, ego, others, kappa, path, stop, actions, xis, xi_pos
     return j_track, j_safe, overlap
 
 
-@pytest.mark.parametrize("xi_positions", ["offset", "step"])
-def test_rollout_matches_numpy_step_by_step(path_set, xi_positions) -> None:
+def test_rollout_matches_numpy_step_by_step(path_set) -> None:
     batch = make_batch(path_set, 6, seed=3, dtype=torch.float64)
-    model = IDCModel(path_set.tensors(dtype=torch.float64), xi_positions=xi_positions)
+    model = IDCModel(path_set.tensors(dtype=torch.float64))
     rng = np.random.default_rng(1)
     actions = rng.uniform([-0.4, -4.5], [0.4, 4.5], (T, 6, 2))
     xis = rng.uniform([-0.8, -0.8, -0.075, -0.025], [0.8, 0.8, 0.225, 0.025], (T, 6, 16, 4))
@@ -68,36 +64,30 @@ def test_rollout_matches_numpy_step_by_step(path_set, xi_positions) -> None:
     assert out.j_safe.sum() > 0, "the test batch should violate some constraints"
     for b in range(6):
         jt, js, overlap = numpy_rollout(path_set, batch.ego[b].numpy(), batch.others[b].numpy(), batch.kappa[b].numpy(),
-                               int(batch.path[b]), bool(batch.stop[b]), actions[:, b], xis[:, b], xi_positions)
+                               int(batch.path[b]), bool(batch.stop[b]), actions[:, b], xis[:, b])
         np.testing.assert_allclose(out.j_track[b].item(), jt, rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(out.j_safe[b].item(), js, rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(out.overlap_m[b].item(), overlap, rtol=1e-9, atol=1e-9)
     assert (out.overlap_m > 0).any() and (out.overlap_m < 0).any(), "the batch should hold both"
 
 
-def test_offset_positions_do_not_accumulate(path_set) -> None:
-    """A constant ξ_x = 0.8 m: "step" carries a participant 0.8 m further every step, "offset" keeps
-    it 0.8 m off its course; the two agree after one step."""
+def test_xi_positions_do_not_accumulate(path_set) -> None:
+    """A constant ξ_x = 0.8 m keeps a participant 0.8 m off its ξ ≡ 0 course at every step after
+    the first, never further (as printed, f_other would carry it 0.8 m further every step)."""
     batch = make_batch(path_set, 1, seed=2, dtype=torch.float64)
     push = torch.zeros(1, 16, 4, dtype=torch.float64)
     push[..., 0] = 0.8
-    seen: dict[str, list[float]] = {"offset": [], "step": []}
-    for mode, xs in seen.items():
-        model = IDCModel(path_set.tensors(dtype=torch.float64), xi_positions=mode)
+    model = IDCModel(path_set.tensors(dtype=torch.float64))
+    seen: dict[str, list[float]] = {"pushed": [], "zero": []}
+    for xs, xi in zip(seen.values(), (push, torch.zeros_like(push))):
 
         def act(s, i, xs=xs):
             xs.append(float(s[0, OTHERS.start]))  # first participant's p_x as the step sees it
             return torch.zeros(1, 2, dtype=torch.float64)
 
-        model.rollout(batch, act, lambda s, i: push, T)
-    ahead = np.subtract(seen["step"], seen["offset"])
-    np.testing.assert_allclose(ahead[:2], 0.0, atol=1e-12)
-    np.testing.assert_allclose(ahead[2:], 0.8 * np.arange(1, T - 1), atol=1e-9)
-
-
-def test_unknown_xi_positions_is_refused(path_set) -> None:
-    with pytest.raises(ValueError, match="xi_positions"):
-        IDCModel(path_set.tensors(), xi_positions="drift")
+        model.rollout(batch, act, lambda s, i, xi=xi: xi, T)
+    off = np.subtract(seen["pushed"], seen["zero"])
+    np.testing.assert_allclose(off, [0.0] + [0.8] * (T - 1), atol=1e-9)
 
 
 def test_dpg_rollout_is_xi_zero(path_set) -> None:

@@ -94,24 +94,19 @@ def saturate_braking(lr: Learner, z: float = 6.0) -> None:
         out.bias[1] = -z
 
 
-def test_saturation_penalty_is_measured_and_pulls_saturated_outputs_back(model, path_set) -> None:
-    lr = learner(model, sample_actions=False, pre_squash_weight=10.0, policy_lr=(1e-3, 1e-3))
+def test_the_saturated_share_is_measured(model, path_set) -> None:
+    lr = learner(model, sample_actions=False)
     saturate_braking(lr, z=6.0)
     batch = make_batch(path_set, 8, seed=11)
     with torch.no_grad():  # the first state's Δδ mean, as a check that only Δa is saturated
         mean, _ = lr.nets.policy.distribution(lr.model.initial_states(batch))
     assert mean[:, 0].abs().max() < 2.5 and torch.allclose(mean[:, 1], torch.tensor(-6.0))
+    # Δa at z = −6 in every state of the rollout, Δδ inside the bound: half the outputs saturated
     losses = lr.update(batch, 1, value=False, adversary=False)
-    # Δa at z = −6 in every state of the rollout, Δδ inside the bound: half the outputs saturated,
-    # each by 6 − 2.5 = 3.5
     assert losses.saturated_share == pytest.approx(0.5, abs=0.05)
-    assert losses.saturation == pytest.approx(3.5**2 / 2, rel=0.05)
-    # Adam's first step moves each parameter by lr against its gradient's sign: the penalty's pull
-    # toward z = 0 outweighs J_π's through tanh's flat tail
-    assert lr.nets.policy.net[-1].bias[1].item() == pytest.approx(-6.0 + 1e-3, abs=1e-5)
 
 
-@pytest.mark.parametrize("variant", [{"pre_squash_weight": 10.0}, {"policy_loss": "log"}, {"policy_loss": "sqrt"}])
+@pytest.mark.parametrize("variant", [{"policy_loss": "log"}, {"policy_loss": "sqrt"}])
 def test_the_policys_own_loss_leaves_the_adversary_step_alone(model, path_set, variant) -> None:
     batch = make_batch(path_set, 8, seed=11)
     runs = []

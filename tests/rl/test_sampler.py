@@ -92,7 +92,7 @@ def test_a_round_is_repeatable(left_paths: PathSet) -> None:
 
 @pytest.mark.parametrize(("field", "value", "message"), [
     ("rule_share", 1.5, "rule_share"), ("empty_share", -0.1, "empty_share"),
-    ("standing_car_share", 2.0, "standing_car_share"), ("standing_car_neighbours", 8, "standing_car_neighbours"),
+    ("standing_car_share", 2.0, "standing_car_share"),
     ("standing_car_gap_m", (3.0, 1.0), "standing_car_gap_m"), ("demand_scale", (1.0, 0.5), "demand_scale"),
     ("demand_scale", (-1.0, 0.5), "demand_scale")])
 def test_bad_sampling_options_are_named(field: str, value: object, message: str) -> None:

@@ -99,9 +99,6 @@ def test_cli_overrides_and_plot(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="algo"):
         apply_overrides(TrainConfig(), {"algo": "ppo"})
 
-    with pytest.raises(ValueError, match="xi_positions"):
-        apply_overrides(TrainConfig(), {"xi_positions": "drift"})
-
     run = tmp_path / "run"
     run.mkdir()
     (run / "metrics.csv").write_text(
@@ -115,17 +112,19 @@ def test_cli_overrides_and_plot(tmp_path: Path) -> None:
     assert bad.exit_code == 2 and "unknown training option" in bad.output
 
 
-def test_configs_from_before_xi_positions_keep_the_step_model() -> None:
-    """A run saved before the field existed trained with ξ added at every step; a new one round-trips."""
+def test_configs_from_before_xi_positions_are_refused_since_their_step_form_is_gone() -> None:
+    """A run saved before either field existed trained with ξ added at every step, a form since
+    removed: it is refused. A config saved now omits xi_positions but names nominal_floor: it loads."""
     old = TrainConfig(algo="apg").to_json()
-    del old["xi_positions"]
-    assert TrainConfig.from_json(old).xi_positions == "step"
-    assert TrainConfig.from_json(TrainConfig().to_json()).xi_positions == "offset"
+    del old["nominal_floor"]
+    with pytest.raises(ValueError, match=r"xi_positions='step': this experiment was removed"):
+        TrainConfig.from_json(old)
+    assert TrainConfig.from_json(TrainConfig().to_json()) == TrainConfig()
 
 
 def test_configs_from_before_the_nominal_floor_keep_the_adversary_alone() -> None:
     """Runs saved before the nominal floor trained against the adversary's prediction alone; resumed, they still do."""
-    old = TrainConfig(algo="apg").to_json()
+    old = {**TrainConfig(algo="apg").to_json(), "xi_positions": "offset"}  # as configs of the time named it
     del old["nominal_floor"]
     assert TrainConfig.from_json(old).nominal_floor is False
     assert TrainConfig.from_json(TrainConfig().to_json()).nominal_floor is True
@@ -171,3 +170,17 @@ def test_a_run_with_the_path_preview_warm_started_from_one_without_keeps_its_out
         controller.reset(world.candidates)
         decision = controller.decide(obs)
     assert decision.action.shape == (2,) and len(decision.path_values) == len(world.candidates)
+
+
+def test_a_run_logged_with_the_saturation_penalty_resumes_without_it(tmp_path: Path) -> None:
+    """A checkpoint and metrics.csv written while ``losses/saturation`` was logged still resume."""
+    from crossroads.rl.logging import COLUMNS, MetricsLogger
+    from crossroads.rl.train import _Window
+
+    (tmp_path / "metrics.csv").write_text("iteration,losses/J_pi,losses/saturation\n3,2.5,0.1\n6,2.0,0.2\n")
+    MetricsLogger(tmp_path, resume_iteration=3, tensorboard=False).close()
+    with (tmp_path / "metrics.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert tuple(rows[0]) == COLUMNS and [(r["iteration"], r["losses/J_pi"]) for r in rows] == [("3", "2.5")]
+    window = _Window.restore({"n": 2, "j_pi": 4.0, "saturated_share": 0.5, "saturation": 3.0, "elapsed": 1.0})
+    assert (window.n, window.j_pi, window.saturated_share, window.elapsed) == (2, 4.0, 0.5, 1.0)

@@ -4,7 +4,7 @@
 ``crossroads.policy.ref``): the bare policy is what APG and DPG are compared by.
 
 Why: 2 s before the collisions of the trained models on the nominal left turn, the training model
-itself (rl.model: f_ego, f_other with each participant's route curvature, ξ ≡ 0) already predicted
+itself (rl.idc_model: f_ego, f_other with each participant's route curvature, ξ ≡ 0) already predicted
 the policy's plan to run into the other participant — the bodies' circles met within the T = 25
 steps in 24 of 37 collisions of one trained APG, while full braking kept J_safe under 1 in 27 of
 them (docs/tried/shield.md). The policy does not act on a danger its model

@@ -1,6 +1,7 @@
 """Training of the IDC networks by APG / DPG (SPEC §6; paper Sec. III-B, Algorithm 1, Sec. V-A).
 
 * :mod:`~crossroads.rl.config` — :class:`TrainConfig`, every field with unit and source;
+* :mod:`~crossroads.rl.experiments` — named recipes on top of the paper's configuration;
 * :mod:`~crossroads.rl.neural_nets` — π_θ (driving policy), π_φ (adversary), v_w (value);
 * :mod:`~crossroads.rl.idc_model` — the differentiable T-step model f in torch (J_track, J_safe);
 * :mod:`~crossroads.rl.buffer` — the ring buffer of sampled states, NamedTuple batches;

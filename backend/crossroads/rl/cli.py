@@ -1,13 +1,17 @@
 """``crossroads train``: the typer sub-app of training (mounted by the main CLI as ``train``).
 
     crossroads train --algo apg|dpg [--iterations N] [--workers K] [--ray ADDRESS] [--out DIR]
-                     [--seed S] [--resume] [--set KEY=VALUE ...]
+                     [--seed S] [--resume] [--experiment NAME ...] [--set KEY=VALUE ...]
     crossroads train plot RUN_DIR [RUN_DIR ...] -o OUT.png
     crossroads train options          # every TrainConfig field with its meaning
+    crossroads train experiments      # the named experiments (rl.experiments)
     crossroads train distill MODEL.pt -o OUT.pt --set participant_encoder=64   # a new network layout
 
-``--set`` reaches any :class:`~crossroads.rl.config.TrainConfig` field (``--set batch_size=8
---set tasks=left,straight``). Imports of torch happen only when a command runs.
+Without ``--experiment`` or ``--set`` a run has the paper's configuration (``TrainConfig()``).
+``--experiment NAME`` applies a named recipe (:mod:`crossroads.rl.experiments`), several in the
+order given; ``--set`` then reaches any :class:`~crossroads.rl.config.TrainConfig` field
+(``--set batch_size=8 --set tasks=left,straight``) and has the last word. Imports of torch happen
+only when a command runs.
 """
 
 from __future__ import annotations
@@ -34,12 +38,16 @@ def train_command(
     out: Annotated[Optional[Path], typer.Option(help="parent directory of the run directory")] = None,
     seed: Annotated[Optional[int], typer.Option(help="the run's seed")] = None,
     resume: Annotated[bool, typer.Option(help="continue the run's newest checkpoint")] = False,
+    experiment: Annotated[Optional[list[str]], typer.Option(
+        "--experiment", metavar="NAME",
+        help="a named experiment (crossroads train experiments); repeatable, applied in order before --set")] = None,
     set_: Annotated[Optional[list[str]], typer.Option("--set", help="KEY=VALUE of any TrainConfig field")] = None,
 ) -> None:
-    """Train (without a sub-command)."""
+    """Train (without a sub-command). No --experiment and no --set: the paper's configuration."""
     if ctx.invoked_subcommand is not None:
         return
     from crossroads.rl.config import TrainConfig, apply_overrides, parse_overrides
+    from crossroads.rl.experiments import apply_experiments
     from crossroads.rl.train import RunExistsError, train
 
     overrides: dict[str, object] = {"algo": algo}
@@ -49,7 +57,7 @@ def train_command(
             overrides[key] = value
     try:
         overrides.update(parse_overrides(set_ or []))
-        config = apply_overrides(TrainConfig(), overrides)
+        config = apply_overrides(apply_experiments(TrainConfig(), experiment or []), overrides)
         run_dir = train(config, resume=resume)
     except (ValueError, RunExistsError, FileNotFoundError) as exc:
         raise fail(str(exc)) from None
@@ -66,6 +74,17 @@ def options_command() -> None:
     docs = field_docs()
     for f in dataclasses.fields(TrainConfig):
         typer.echo(f"{f.name} = {getattr(TrainConfig(), f.name)!r}\n    {docs.get(f.name, '')}")
+
+
+@app.command("experiments")
+def experiments_command() -> None:
+    """List the named experiments: what each sets, what for, and where its result is written."""
+    from crossroads.rl.experiments import EXPERIMENTS
+
+    for experiment in EXPERIMENTS.values():
+        values = " ".join(f"{key}={value}" for key, value in experiment.overrides.items())
+        typer.echo(f"{experiment.name}\n    {experiment.description}\n    sets: {values}\n"
+                   f"    measured: {experiment.measured}")
 
 
 PANELS: tuple[tuple[str, str], ...] = (

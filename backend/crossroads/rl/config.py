@@ -1,9 +1,16 @@
 """The training configuration of APG / DPG (SPEC §6, paper Algorithm 1 and Sec. V-A).
 
 One typed, frozen dataclass; every field carries its unit and where its default comes from.
-Defaults are the paper's numbers (from :mod:`crossroads.constants`); "(choice)" marks a project
-decision where the paper is silent. :func:`apply_overrides` turns ``key=value`` strings (the command
-line) into a new config and names any unknown key or bad value.
+``TrainConfig()`` itself is the paper's configuration: its defaults are the paper's numbers (from
+:mod:`crossroads.constants`), and where the paper is silent a project decision marked "(choice)" in
+the field's docstring. Recipes that depart from the paper (the short-run learning rates, the
+shipped models' own recipes) are named experiments in :mod:`crossroads.rl.experiments`, applied on
+top of it. :func:`apply_overrides` turns ``key=value`` strings (the command line) into a new config
+and names any unknown key or bad value.
+
+Options whose experiment lost are removed with their code (:data:`REMOVED_OPTIONS`; what they
+measured stays on docs/tried/training.md). A saved config that still names one loads when it holds
+the value under which the option did nothing, and is refused with a one-line error otherwise.
 """
 
 from __future__ import annotations
@@ -33,15 +40,8 @@ from crossroads.constants import (
 from crossroads.network.road import TASKS
 
 Algo = Literal["apg", "dpg"]
-XiPositions = Literal["offset", "step"]  # how ξ_x, ξ_y act over the model's horizon (rl.model)
-XI_POSITION_MODES: tuple[str, ...] = typing.get_args(XiPositions)
 PolicyLoss = Literal["mean", "sqrt", "log"]  # how the driving policy weighs the states of a batch (rl.learner)
-
-
-def check_xi_positions(value: str) -> None:
-    """Refuse an unknown ``xi_positions`` (TrainConfig and IDCModel take it)."""
-    if value not in XI_POSITION_MODES:
-        raise ValueError(f"xi_positions: must be one of {XI_POSITION_MODES}, got {value!r}")
+TRIED_PAGE = "docs/tried/training.md"  # where every training experiment's result is written, kept or not
 
 DEFAULT_INTERSECTIONS: tuple[str, ...] = (
     "a_single_lane", "b_two_lane", "c_three_lane",
@@ -66,19 +66,14 @@ class TrainConfig:
     """Penalty factor ρ of J_π = J_track + ρ J_safe (paper: 15)."""
     adversary_interval: int = ADVERSARY_UPDATE_INTERVAL
     """m: the adversary is updated at iterations k with k % m == 0 (paper: 5)."""
-    xi_positions: XiPositions = "offset"
-    """(choice) How the adversary's ξ_x, ξ_y act over the horizon (rl.model): "offset" displaces each
-    predicted position by at most the ξ range without carrying over (ξ_v, ξ_φ still propagate, as
-    printed); "step" adds them to the position at every step as f_other is printed, which lets the
-    adversary carry any participant up to 20 m onto the ego (measured: APG learned to flee)."""
     nominal_floor: bool = True
     """(choice) APG: each safety constraint of the model is the worse of the adversary's prediction
-    and the ξ ≡ 0 one (rl.model), so a half-trained adversary cannot make the scene look safer than
+    and the ξ ≡ 0 one (rl.idc_model), so a half-trained adversary cannot make the scene look safer than
     plain prediction does (measured: a slowly learning adversary sped up a standing queue ahead of the
     ego, and its policy drove into such queues). False: the adversary's prediction alone."""
     braking_floor: bool = False
     """(choice) Each safety constraint of the model is also the worse of the prediction and one with
-    every participant braking at ``constants.OTHER_DECEL_MPS2`` to a stand (rl.model), so a plan must
+    every participant braking at ``constants.OTHER_DECEL_MPS2`` to a stand (rl.idc_model), so a plan must
     stay safe if the car ahead brakes. Measured (docs/tried/training.md, "The model's own optimum"): the
     model's own receding-horizon optimum without it passed no more nominal left turns than the
     policy: at 8.3 m/s it braked too late for a queue whose last car was slowing from 1 m/s and hit it
@@ -86,11 +81,13 @@ class TrainConfig:
     stopping_tail: int = 0
     """(choice) Steps [0.1 s] of full braking appended to every rollout's last state, every
     participant braking to a stand alongside; J_safe gets the squared reach of the ego's rest point
-    (plus the safety margin) past each participant at rest ahead in its way (rl.model,
+    (plus the safety margin) past each participant at rest ahead in its way (rl.idc_model,
     ``stopping_intrusion``): a terminal constraint that the plan end where the ego can still stop clear. 0 (paper): none; 40 covers full
     braking from the pass profile's 8.33 m/s (the safety shield's horizon). Why: from 8.33 m/s full
     braking takes ~3.3 s, longer than T = 25 steps, and every trained policy without it ran into
-    standing queues at the pass profile's speed (docs/tried/training.md, "The stopping tail")."""
+    standing queues at the pass profile's speed (docs/tried/training.md, "The stopping tail"). It
+    taught the stop in the queue test but did not raise the passes; it stays because
+    ``models/pooled/apg.pt`` trains with it (the ``pooled`` experiment)."""
     sample_actions: bool = True
     """Training rollouts draw u ~ π_θ and ξ ~ π_φ by reparameterisation (the paper's u ~ π_θ(s));
     False uses the tanh-squashed means (deterministic rollouts)."""
@@ -107,15 +104,8 @@ class TrainConfig:
     8.1). The adversary keeps the paper's mean (it maximises J_π); logs report J_π as the mean."""
     pre_squash_bound: float = 2.5
     """(choice) |z| of the driving policy's pre-tanh means beyond which an output counts as saturated
-    (``charts/saturated_share``) and the saturation penalty acts: tanh(2.5) = 0.987, so the bound
-    still leaves 98.7 % of each action's range."""
-    pre_squash_weight: float = 0.0
-    """(choice) Weight of the saturation penalty added to the driving policy's loss (not the
-    adversary's): weight × mean over the rollout's T states and the two outputs of max(0, |z| − bound)².
-    Past the bound tanh's slope vanishes (1 − tanh²(3) = 0.01), so J_π barely moves a saturated output
-    any more. Measured: an APG trained without it had |z| > 3 on Δa in 55 % of sampled states, and on an
-    empty road at the reference speed it braked at full jerk (J_track of its plan 40 against 7 for
-    the model's optimum). 0 (paper): no penalty."""
+    in the logs (``charts/saturated_share``): tanh(2.5) = 0.987, and past it tanh's slope vanishes
+    (1 − tanh²(3) = 0.01), so J_π barely moves such an output any more. Only measured, never trained on."""
 
     # --- networks (Sec. V-A) ---------------------------------------------------------------------
     path_preview: bool = False
@@ -137,11 +127,12 @@ class TrainConfig:
     by distance, so the car ahead sits in a different slot from scene to scene among the oncoming
     traffic; measured, 2 s before a collision with a vehicle ahead a trained policy's plan met it in
     3 of 31 states with the other slots padded and in 17 of 31 as seen. A warm start keeps the
-    source's outputs (the new inputs' weights start at zero). False (paper): nothing added."""
+    source's outputs (the new inputs' weights start at zero). False (paper): nothing added. It did not
+    raise the passes (docs/tried/training.md); it stays because ``models/pooled/apg.pt`` reads it."""
     participant_encoder: int = 0
     """(choice) > 0: the driving policy and the value network read the 16 participants through one
     small network shared by every slot (this many units, 2 GELU layers), max-pooled over the slots
-    (``rl.networks.ParticipantPooling``), instead of 96 slot-specific inputs; the adversary keeps them
+    (``rl.neural_nets.ParticipantPooling``), instead of 96 slot-specific inputs; the adversary keeps them
     flat (its ξ are per slot). Measured (``benchmarks/research/clutter_probe.py``): 2 s before a
     collision with a vehicle ahead, the shipped APG's plan kept clear of that vehicle alone in the first slot in
     29 of 32 states and alone in the slot it had as seen in 4. Flat networks start such a run only
@@ -214,11 +205,6 @@ class TrainConfig:
     at 8 m/s every gap under 14 m is a collision no plan avoids and the plan that hurts least
     swerves — a run trained so tracked its straight paths worse (0.044 → 0.29 m) and still hit the queue test's
     car from 6 and 8 m/s."""
-    standing_car_neighbours: int = 0
-    """(choice) Up to this many more standing cars around each standing-car copy's car (drawn
-    uniformly in 0..N, rl.augment.queue_neighbours): one queued behind it, the rest in the
-    neighbouring lanes, so the car ahead is one of several standing cars in the slots, as in a real
-    queue. 0: none (runs before the option)."""
     danger_share: float = 0.5
     """(choice) Share of every batch drawn from the buffer's dangerous states (J_safe of the
     policy's plan above ``danger_threshold``); 0 = the paper's uniform draws (rl.buffer)."""
@@ -266,6 +252,10 @@ class TrainConfig:
     """Show a progress bar with ETA on stderr."""
     tensorboard: bool = True
     """Also write TensorBoard events when torch.utils.tensorboard can be imported."""
+    experiments: tuple[str, ...] = ()
+    """The named experiments (``crossroads train --experiment``, rl.experiments) applied to the
+    paper's configuration, in order, before any --set: a record of how the run was configured (their
+    values are already in the other fields). (): the paper's configuration and --set alone."""
 
     def __post_init__(self) -> None:
         if self.algo not in ("apg", "dpg"):
@@ -280,7 +270,6 @@ class TrainConfig:
             raise ValueError(f"stopping_tail: must be ≥ 0 steps, got {self.stopping_tail}")
         if self.samples_per_iteration <= 0:
             raise ValueError("samples_per_iteration: must be > 0")
-        check_xi_positions(self.xi_positions)
         if not 0.0 <= self.danger_share <= 1.0:
             raise ValueError(f"danger_share: must lie in [0, 1], got {self.danger_share}")
         if not self.danger_threshold >= 0.0:
@@ -289,8 +278,6 @@ class TrainConfig:
             raise ValueError(f"standing_car_share: must lie in [0, 1], got {self.standing_car_share}")
         if self.participant_encoder < 0:
             raise ValueError(f"participant_encoder: must be ≥ 0 units, got {self.participant_encoder}")
-        if not 0 <= self.standing_car_neighbours < 8:  # the 8 vehicle slots hold them and the car ahead
-            raise ValueError(f"standing_car_neighbours: must lie in 0..7, got {self.standing_car_neighbours}")
         low, high = self.standing_car_gap_m
         if not 0.0 <= low <= high:
             raise ValueError(f"standing_car_gap_m: need 0 <= low <= high, got {self.standing_car_gap_m}")
@@ -322,15 +309,66 @@ class TrainConfig:
 
     @classmethod
     def from_json(cls, data: dict[str, Any]) -> TrainConfig:
+        """A saved config (a run's config.json, a checkpoint's, a model card's ``config``).
+
+        A field the saved config predates gets the value its run trained with, so a resumed old run
+        keeps its model instead of switching under its own checkpoints. A removed option
+        (:data:`REMOVED_OPTIONS`) is dropped at its neutral value and refused otherwise."""
         data = dict(data)
-        # written before the field existed: those runs added ξ_x, ξ_y at every step,
-        # so a resumed old run keeps its model instead of switching under its own checkpoints
-        data.setdefault("xi_positions", "step")
-        data.setdefault("nominal_floor", False)  # likewise
+        if "xi_positions" not in data and "nominal_floor" not in data:
+            # written before either field existed: those runs added ξ_x, ξ_y at every step, a form
+            # since removed. (Later configs either name xi_positions or, written after its removal,
+            # name nominal_floor alone.)
+            data["xi_positions"] = "step"
+        data.setdefault("nominal_floor", False)  # the run trained against the adversary alone
         data.setdefault("empty_share", 0.0)  # likewise: keeps their sampling draws
         data.setdefault("standing_car_share", 0.0)  # likewise
         data.setdefault("standing_car_stoppable", False)  # likewise (their bumper gaps)
         return apply_overrides(cls(), data)
+
+
+@dataclass(frozen=True)
+class RemovedOption:
+    """A training option whose experiment lost and whose code is gone."""
+
+    hint: Any
+    """Its type, as the field had it (to read a command-line string)."""
+    neutral: Any
+    """The value under which it did nothing: a saved config may still name it so."""
+    anchor: str
+    """The section of docs/tried/training.md that holds what it measured."""
+
+    def refusal(self, name: str, value: Any) -> str:
+        return (f"{name}={value!r}: this experiment was removed from training (see {TRIED_PAGE}#{self.anchor}); "
+                f"only its neutral value {self.neutral!r} still loads")
+
+
+REMOVED_OPTIONS: dict[str, RemovedOption] = {
+    "xi_positions": RemovedOption(str, "offset", "the-adversary-2026-12-01"),
+    # ("step": ξ_x, ξ_y added at every step as f_other is printed; the adversary could carry any
+    # participant 20 m onto the ego and APG learned to flee. "offset" is what remains.)
+    "pre_squash_weight": RemovedOption(float, 0.0, "which-states-the-policys-step-serves-2026-12-03"),
+    "standing_car_neighbours": RemovedOption(int, 0, "what-the-adversary-and-the-queues-hid-2026-12-02"),
+}
+"""Removed options: name → its type, neutral value and the docs/tried/training.md anchor of its result."""
+
+
+def without_removed_options(overrides: dict[str, Any]) -> dict[str, Any]:
+    """``overrides`` without the removed options that hold their neutral value; any other value of
+    one raises ValueError naming the option and where its result is written."""
+    out = {}
+    for key, value in overrides.items():
+        removed = REMOVED_OPTIONS.get(key.replace("-", "_"))
+        if removed is None:
+            out[key] = value
+            continue
+        try:
+            neutral = _coerce(key, removed.hint, value) == removed.neutral
+        except (TypeError, ValueError):
+            neutral = False
+        if not neutral:
+            raise ValueError(removed.refusal(key.replace("-", "_"), value))
+    return out
 
 
 def _coerce(name: str, hint: Any, value: Any) -> Any:
@@ -374,7 +412,7 @@ def apply_overrides(config: TrainConfig, overrides: dict[str, Any]) -> TrainConf
     hints = typing.get_type_hints(TrainConfig, globalns={**globals(), "Path": Path})
     known = {f.name for f in fields(TrainConfig)}
     changes = {}
-    for key, value in overrides.items():
+    for key, value in without_removed_options(overrides).items():
         name = key.replace("-", "_")
         if name not in known:
             raise ValueError(f"unknown training option {key!r}; known: {', '.join(sorted(known))}")
@@ -414,5 +452,5 @@ def field_docs() -> dict[str, str]:
     return docs
 
 
-__all__ = ["Algo", "DEFAULT_INTERSECTIONS", "TrainConfig", "apply_overrides", "field_docs",
-           "parse_overrides", "save_config"]
+__all__ = ["Algo", "DEFAULT_INTERSECTIONS", "REMOVED_OPTIONS", "TrainConfig", "apply_overrides", "field_docs",
+           "parse_overrides", "save_config", "without_removed_options"]

@@ -16,19 +16,15 @@ the dynamics into u (θ) and ξ (φ); the reference point is data (``reference_p
 it without gradient, the ego's error against it is differentiable). **(choice)** κ of every
 participant is held at its initial value over the horizon (the model has no routes).
 
-How ξ enters the horizon (``xi_positions``, **(choice)**, ``TrainConfig.xi_positions``):
-
-* ``"step"``: f_other exactly as printed, ξ added at every step, so ξ_x, ξ_y accumulate: 25 steps
-  of ±0.8 m move a participant up to 20 m in any direction (an extra 8 m/s toward the ego).
-  Measured with an APG trained so (docs/tried/training.md, "The adversary"): against its adversary the
-  median J_safe was 117 with the ego standing and 157-176 moving (0 with ξ ≡ 0), whether the ego
-  kept to its plan, braked or accelerated, and the policy learned to flee (collisions at a median
-  11.3 m/s).
-* ``"offset"`` (default): ξ_v and ξ_φ propagate through f_other as printed (a participant can
-  speed up by up to 5.6 m/s or turn 0.6 rad off its route over the horizon: the paper's
-  over-speeding and rounding of Sec. V-C), while ξ_x, ξ_y displace each predicted position from the
-  participant's own (ξ_v, ξ_φ-driven) trajectory by at most ±0.8 m without carrying over to the next
-  step: a bounded position uncertainty, as the paper motivates ξ ("bounded random noise").
+How ξ enters the horizon (**(choice)**): ξ_v and ξ_φ propagate through f_other as printed (a
+participant can speed up by up to 5.6 m/s or turn 0.6 rad off its route over the horizon: the
+paper's over-speeding and rounding of Sec. V-C), while ξ_x, ξ_y displace each predicted position
+from the participant's own (ξ_v, ξ_φ-driven) trajectory by at most ±0.8 m without carrying over to
+the next step: a bounded position uncertainty, as the paper motivates ξ ("bounded random noise").
+f_other as printed adds ξ_x, ξ_y at every step, so 25 steps of ±0.8 m move a participant up to
+20 m in any direction; an APG trained so faced an adversary no plan could escape (median J_safe
+117 with the ego standing) and learned to flee. That form lost and was removed (docs/tried/training.md,
+"The adversary"; saved configs name it ``xi_positions="step"``).
 
 The nominal floor (``nominal_floor``, **(choice)**, ``TrainConfig.nominal_floor``): with an
 adversary, each safety constraint is taken as the worse (larger g) of the adversary's prediction
@@ -76,7 +72,6 @@ from crossroads.idc.constraints import SAFETY_MARGIN_M, penalty, road_constraint
 from crossroads.idc.state import N_OTHERS, PathTensors, Reference, preview_torch, reference_points_torch, tracking_error
 from crossroads.idc.utility import utility
 from crossroads.rl.buffer import StateBatch
-from crossroads.rl.config import XiPositions, check_xi_positions
 from crossroads.sim.ego import ego_step
 from crossroads.sim.other import other_braking_step, other_step
 
@@ -104,14 +99,12 @@ def assemble(ego: Tensor, track: Tensor, others: Tensor, preview: Tensor | None 
 class IDCModel:
     """The model f over a fixed set of candidate paths (padded, see ``idc.state.path_tensors``)."""
 
-    def __init__(self, paths: PathTensors, xi_positions: XiPositions = "offset", nominal_floor: bool = False,
-                 braking_floor: bool = False, preview: bool = False, stopping_tail: int = 0) -> None:
-        check_xi_positions(xi_positions)
+    def __init__(self, paths: PathTensors, nominal_floor: bool = False, braking_floor: bool = False,
+                 preview: bool = False, stopping_tail: int = 0) -> None:
         if stopping_tail < 0:
             raise ValueError(f"stopping_tail must be ≥ 0 steps, got {stopping_tail}")
         self.paths = paths
         self.preview = preview  # states carry the path preview (networks with path_preview read it)
-        self.xi_positions = xi_positions
         self.nominal_floor = nominal_floor
         self.braking_floor = braking_floor
         self.stopping_tail = stopping_tail
@@ -137,7 +130,7 @@ class IDCModel:
         j_track = torch.zeros(ego.shape[0], dtype=ego.dtype, device=ego.device)
         j_safe = torch.zeros_like(j_track)
         overlap = torch.full_like(j_track, -torch.inf)
-        course = others  # "offset": each participant's trajectory before this step's ξ_x, ξ_y
+        course = others  # each participant's trajectory before this step's ξ_x, ξ_y
         nominal = others  # the ξ ≡ 0 prediction, for the nominal floor
         braking = others  # everyone braking to a stand, for the braking floor
         floor = self.nominal_floor and disturb is not None
@@ -146,8 +139,8 @@ class IDCModel:
             xi = disturb(s, i) if disturb is not None else None
             l, _ = utility(s, u)
             ego = ego_step(ego, u)
-            if xi is None or self.xi_positions == "step":
-                others = other_step(others, kappa, xi)
+            if xi is None:
+                others = other_step(others, kappa, None)
             else:
                 course = other_step(course, kappa, _without_positions(xi))
                 others = _displaced(course, xi)
@@ -237,7 +230,7 @@ def stopping_intrusion(ego: Tensor, rest: Tensor, others: Tensor) -> Tensor:
 
 
 def _without_positions(xi: Tensor) -> Tensor:
-    """ξ with ξ_x = ξ_y = 0 (the part of ξ that propagates in the "offset" mode)."""
+    """ξ with ξ_x = ξ_y = 0 (the part of ξ that propagates over the horizon)."""
     return torch.cat([torch.zeros_like(xi[..., :2]), xi[..., 2:]], dim=-1)
 
 
@@ -250,8 +243,8 @@ def policy_fns(policy: torch.nn.Module, adversary: torch.nn.Module | None, sampl
                pre_squash: list[Tensor] | None = None) -> tuple[ActionFn, XiFn | None]:
     """The rollout's ``act`` / ``disturb`` from the networks: reparameterised draws when ``sample``,
     the squashed means otherwise. ``adversary=None`` (DPG) gives ξ ≡ 0. With ``pre_squash`` (a list),
-    ``act`` appends the driving policy's pre-tanh means z [B, 2] of every step to it (the learner's
-    saturation penalty); the draws are the same either way."""
+    ``act`` appends the driving policy's pre-tanh means z [B, 2] of every step to it (the learner
+    logs their saturated share); the draws are the same either way."""
 
     def act(s: Tensor, _: int) -> Tensor:
         mean, log_std = policy.distribution(s)  # type: ignore[operator]

@@ -6,7 +6,7 @@ One iteration k on a batch of initial states:
 2. value step: J_v = mean (v_w(s_0, τ) − J_track)², J_track detached (the regression target);
    w ← w − β_w ∇_w J_v;
 3. policy step: J_π = mean (J_track + ρ J_safe); θ ← θ − β_θ ∂_θ J_π (or the driving policy's own
-   variants, ``TrainConfig.policy_loss`` and ``pre_squash_weight``; see ``Learner.policy_loss``);
+   variant, ``TrainConfig.policy_loss``; see ``Learner.policy_loss``);
 4. adversary step, when k % m == 0 (APG only): φ ← φ + β_φ ∂_φ J_π (gradient ASCENT: Adam with
    ``maximize=True``), on the same J_π of step 1 (Algorithm 1 computes J_π once per iteration).
 
@@ -41,8 +41,6 @@ class Losses:
     j_pi: float
     saturated_share: float = 0.0
     """Share of the driving policy's pre-tanh outputs over the rollout with |z| > ``pre_squash_bound``."""
-    saturation: float = 0.0
-    """The saturation penalty (unweighted; see ``TrainConfig.pre_squash_weight``)."""
     j_safe_per_state: np.ndarray = field(default_factory=lambda: np.zeros(0, np.float32), repr=False)
     """J_safe of each state of the batch (the buffer's danger scores, see ``ReplayBuffer``)."""
 
@@ -85,18 +83,15 @@ class Learner:
         j_pi = torch.mean(out.j_track + self.config.rho * out.j_safe)
         return j_v, j_pi, out
 
-    def policy_loss(self, out: Rollout, j_pi: Tensor, saturation: Tensor) -> Tensor:
-        """What the driving policy's step minimises (``TrainConfig.policy_loss`` and
-        ``pre_squash_weight``); ``j_pi`` itself when both are the paper's."""
-        loss = j_pi
+    def policy_loss(self, out: Rollout, j_pi: Tensor) -> Tensor:
+        """What the driving policy's step minimises (``TrainConfig.policy_loss``); ``j_pi`` itself
+        under the paper's "mean"."""
         per_state = out.j_track + self.config.rho * out.j_safe
         if self.config.policy_loss == "log":
-            loss = torch.mean(torch.log1p(per_state))
-        elif self.config.policy_loss == "sqrt":
-            loss = torch.mean(2.0 * torch.sqrt(1.0 + per_state))
-        if self.config.pre_squash_weight > 0:
-            loss = loss + self.config.pre_squash_weight * saturation
-        return loss
+            return torch.mean(torch.log1p(per_state))
+        if self.config.policy_loss == "sqrt":
+            return torch.mean(2.0 * torch.sqrt(1.0 + per_state))
+        return j_pi
 
     # --- the update ----------------------------------------------------------------------------------
 
@@ -122,15 +117,14 @@ class Learner:
         adversary = adversary and self.nets.adversary is not None
         pre_squash: list[Tensor] = []
         j_v, j_pi, out = self.losses(batch, pre_squash=pre_squash)
-        z = torch.stack(pre_squash)  # [T, B, 2] the driving policy's pre-tanh means
-        saturation = torch.mean(torch.relu(z.abs() - self.config.pre_squash_bound) ** 2)
+        z = torch.stack(pre_squash).detach()  # [T, B, 2] the driving policy's pre-tanh means
         if value:
             w = list(self.nets.value.parameters())
             self._apply(self.nets.value, self.value_opt, torch.autograd.grad(j_v, w, allow_unused=True))
         theta = list(self.nets.policy.parameters()) if policy else []
         phi = list(self.nets.adversary.parameters()) if adversary else []  # type: ignore[union-attr]
         if theta or phi:
-            policy_loss = self.policy_loss(out, j_pi, saturation)
+            policy_loss = self.policy_loss(out, j_pi)
             if theta and policy_loss is not j_pi:  # the policy's own loss; the adversary keeps J_π
                 grads = torch.autograd.grad(policy_loss, theta, allow_unused=True, retain_graph=bool(phi))
                 if phi:
@@ -149,10 +143,9 @@ class Learner:
                     if sched is not None:
                         sched.step()
         j_safe = out.j_safe.detach()
-        saturated = (z.detach().abs() > self.config.pre_squash_bound).float().mean()
+        saturated = (z.abs() > self.config.pre_squash_bound).float().mean()
         return Losses(float(j_v.detach()), float(out.j_track.detach().mean()), float(j_safe.mean()),
-                      float(j_pi.detach()), float(saturated), float(saturation.detach()),
-                      j_safe.cpu().numpy().astype(np.float32))
+                      float(j_pi.detach()), float(saturated), j_safe.cpu().numpy().astype(np.float32))
 
     def danger(self, batch: StateBatch) -> np.ndarray:
         """J_safe of the current policy's plan (means, no gradient) from each state of ``batch``:

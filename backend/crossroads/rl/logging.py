@@ -19,7 +19,7 @@ COLUMNS: tuple[str, ...] = (
     "iteration", "losses/J_v", "losses/J_track", "losses/J_safe", "losses/J_pi",
     "charts/TAR", "charts/TAR_std", "charts/TAR_steps", "charts/TAR_collisions", "charts/TAR_off_road",
     "charts/TAR_passed", "charts/iterations_per_s", "charts/lr_policy", "charts/lr_value",
-    "charts/lr_adversary", "charts/saturated_share", "losses/saturation", "buffer/size", "buffer/added", "time/elapsed_s",
+    "charts/lr_adversary", "charts/saturated_share", "buffer/size", "buffer/added", "time/elapsed_s",
 )
 TIMING_COLUMNS = ("charts/iterations_per_s", "time/elapsed_s")  # the only columns that differ run to run
 
@@ -33,8 +33,8 @@ class MetricsLogger:
             with self.path.open(newline="") as f:
                 rows = [r for r in csv.DictReader(f) if int(r["iteration"]) <= resume_iteration]
             self._write_header()
-            with self.path.open("a", newline="") as f:
-                w = csv.DictWriter(f, fieldnames=COLUMNS)
+            with self.path.open("a", newline="") as f:  # columns since dropped are left out
+                w = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="ignore")
                 w.writerows(rows)
         else:
             self._write_header()

@@ -254,8 +254,7 @@ class EpisodeSampler:
         recorded = Samples.concat(rows)
         # drawn after the episode, so the episode's own draws stay those of runs without the option
         extra = standing_car_copies(recorded, path, cfg.standing_car_share, cfg.standing_car_gap_m, rng,
-                                    stoppable=cfg.standing_car_stoppable,
-                                    neighbours=cfg.standing_car_neighbours)
+                                    stoppable=cfg.standing_car_stoppable)
         return Samples.concat([recorded, extra])
 
 

@@ -72,9 +72,9 @@ def train(config: TrainConfig, *, resume: bool = False) -> Path:
     # worlds: round r of worker w draws from default_rng([seed, w, r]) (rl.sampler); TAR: tar_seed + r
 
     paths = PathSet.build(config.intersections, config.tasks)
-    model = IDCModel(paths.tensors(device=device), xi_positions=config.xi_positions,
-                     nominal_floor=config.nominal_floor, braking_floor=config.braking_floor,
-                     preview=config.path_preview, stopping_tail=config.stopping_tail)
+    model = IDCModel(paths.tensors(device=device), nominal_floor=config.nominal_floor,
+                     braking_floor=config.braking_floor, preview=config.path_preview,
+                     stopping_tail=config.stopping_tail)
     learner = Learner(config, model, device)
     buffer = ReplayBuffer(config.buffer_size, buffer_seed)
     start = 0
@@ -90,7 +90,7 @@ def train(config: TrainConfig, *, resume: bool = False) -> Path:
         start = checkpoint["iteration"]
         next_round = checkpoint["sampler"]["next_round"]
         pending = checkpoint["sampler"]["pending"]
-        window = _Window(**checkpoint["window"])
+        window = _Window.restore(checkpoint["window"])
 
     elif config.init_from is not None:
         warm_start(learner, config.init_from)
@@ -165,7 +165,6 @@ class _Window:
     j_safe: float = 0.0
     j_pi: float = 0.0
     saturated_share: float = 0.0
-    saturation: float = 0.0
     elapsed: float = 0.0  # [s] spent in this window before a resume
     started: float = 0.0  # time.monotonic() at the window's (re)start; not saved
 
@@ -176,20 +175,26 @@ class _Window:
         self.j_safe += losses.j_safe
         self.j_pi += losses.j_pi
         self.saturated_share += losses.saturated_share
-        self.saturation += losses.saturation
 
     def row(self, iteration: int) -> dict[str, float]:
         n = max(self.n, 1)
         seconds = self.elapsed + time.monotonic() - self.started
         return {"iteration": iteration, "losses/J_v": self.j_v / n, "losses/J_track": self.j_track / n,
                 "losses/J_safe": self.j_safe / n, "losses/J_pi": self.j_pi / n,
-                "charts/saturated_share": self.saturated_share / n, "losses/saturation": self.saturation / n,
+                "charts/saturated_share": self.saturated_share / n,
                 "charts/iterations_per_s": self.n / max(seconds, 1e-9), "time/elapsed_s": seconds}
 
     def state(self) -> dict[str, float]:
         return {"n": self.n, "j_v": self.j_v, "j_track": self.j_track, "j_safe": self.j_safe,
-                "j_pi": self.j_pi, "saturated_share": self.saturated_share, "saturation": self.saturation,
+                "j_pi": self.j_pi, "saturated_share": self.saturated_share,
                 "elapsed": self.elapsed + time.monotonic() - self.started}
+
+    @classmethod
+    def restore(cls, state: dict[str, float]) -> _Window:
+        """The window of a checkpoint's :meth:`state`; sums of metrics since dropped (a checkpoint
+        written while the saturation penalty existed holds its sum) are ignored."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{key: value for key, value in state.items() if key in known})
 
 
 def warm_start(learner: Learner, source: Path) -> None:
