@@ -7,7 +7,7 @@ light with two programs): every approach × task either has candidates a car can
 refused in one line. Every walk the demand may draw for a pedestrian is one SUMO routes. Then a
 few seeded episodes per task on a selection of them, with the rule controller and SUMO's own
 driver: no ``error`` outcome, no collision before t = 2 s. The full corpus at 20 seeds is
-``benchmarks/real_nets.py`` (minutes; its figures are in the report).
+``benchmarks/real_nets.py`` (its figures: docs/results/real-nets.md).
 """
 
 from __future__ import annotations
