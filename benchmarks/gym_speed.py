@@ -11,8 +11,8 @@ The same episodes, the same actions, four ways, alternating, in one process:
   loop of ``crossroads run --policy rule``;
 * state: ``World.step`` and the IDC state of every candidate path (light logic, x_other, x_track):
   what an IDC controller computes before its networks run;
-* gym: ``CrossroadsEnv.step(action)``: the world step, the states, the tracked path, the reward
-  (utility, 60 constraints and their penalty) and the ``info`` dict.
+* gym: ``CrossroadsEnv.step(action)`` (box observation): the world step, the tracked path and its
+  state (built alone), the reward (utility, 60 constraints and their penalty) and the ``info`` dict.
 
 The actions are the rule controller's, recorded once per seed (paper traffic), and replayed; resets
 are not timed (all four do the same warm-up). Times are the process's CPU time

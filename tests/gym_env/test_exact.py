@@ -5,6 +5,7 @@ IDC state as the IDC controller builds it, the reward the utility and the penalt
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -55,17 +56,19 @@ def reference_reward(config: RewardConfig, state: np.ndarray, action: np.ndarray
     return bonus - l_value - weighted, l_value, weighted
 
 
-def test_a_seeded_episode_observes_and_rewards_as_the_definitions(tmp_path: Path) -> None:
+@pytest.mark.parametrize("observation", ["dict", "box"])
+def test_a_seeded_episode_observes_and_rewards_as_the_definitions(tmp_path: Path, observation: str) -> None:
+    """Every candidate's state (dict), or the tracked one's alone (box: built by itself), the
+    tracked path and the reward, step by step, as the definitions give them."""
     scenario = tmp_path / "busy-left.yaml"
     scenario.write_text(yaml.safe_dump(BUSY))
-    env = CrossroadsEnv(scenario, observation="dict")
+    env = CrossroadsEnv(scenario, observation=observation)
     config = env.reward_config
     try:
         for seed in (3, 5):
-            obs, _ = env.reset(seed=seed)
+            obs, info = env.reset(seed=seed)
             states, path = reference_states(env.observation)
-            np.testing.assert_array_equal(obs["candidates"], states.astype(np.float32))
-            assert obs["path"] == path
+            check_observation(obs, info, states, path)
             controller = RuleBasedController()
             controller.reset(env.candidates)
             steps = 0
@@ -77,9 +80,7 @@ def test_a_seeded_episode_observes_and_rewards_as_the_definitions(tmp_path: Path
                     action = np.array([0.9, -7.0]) if steps % 2 else np.array([-0.55, 6.0])
                 obs, reward, terminated, truncated, info = env.step(action)
                 states, path = reference_states(env.observation)
-                np.testing.assert_array_equal(obs["candidates"], states.astype(np.float32))
-                np.testing.assert_array_equal(obs["state"], states[path].astype(np.float32))
-                assert obs["path"] == path == info["path"]
+                check_observation(obs, info, states, path)
                 total, l_value, weighted = reference_reward(config, before, action, states[path], info["outcome"])
                 assert (reward, info["utility"], info["penalty"]) == (total, l_value, weighted)
                 steps += 1
@@ -88,6 +89,16 @@ def test_a_seeded_episode_observes_and_rewards_as_the_definitions(tmp_path: Path
             assert steps > 50
     finally:
         env.close()
+
+
+def check_observation(obs: Any, info: dict[str, Any], states: np.ndarray, path: int) -> None:
+    """``obs`` (box or dict) and ``info`` observe ``states`` (every candidate's) tracking ``path``."""
+    assert info["path"] == path
+    if isinstance(obs, dict):
+        np.testing.assert_array_equal(obs["candidates"], states.astype(np.float32))
+        assert obs["path"] == path
+        obs = obs["state"]
+    assert obs.dtype == np.float32 and obs.tobytes() == states[path].astype(np.float32).tobytes()
 
 
 def near_miss_states(gaps: list[float], seed: int = 0) -> np.ndarray:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -343,3 +344,68 @@ def test_lead_features_are_pose_invariant_backend_free_and_differentiable() -> N
     x = S.network_input(st, lead=True)
     assert x.shape == (64, STATE_DIM + 3)
     np.testing.assert_allclose(x[:, STATE_DIM:], lead)
+
+
+def _every_segment(st, x, y):
+    """(i, w, d) of every segment searched, in plain numpy: each candidate's nearest segment (the
+    first of equals), its foot's position w and the squared distance to the foot."""
+    relx, rely = x - st.ax, y - st.ay
+    t = (relx * st.abx + rely * st.aby) * st.inv_len2
+    t = np.minimum(np.maximum(t, 0.0), 1.0)
+    d = (relx - t * st.abx) ** 2 + (rely - t * st.aby) ** 2
+    i = d.argmin(axis=1)
+    rows = np.arange(len(i))
+    return i.tolist(), t[rows, i].tolist(), d[rows, i].tolist()
+
+
+def test_the_nearest_segments_are_those_of_the_plain_search(candidates) -> None:
+    """_nearest (in-place numpy, for speed) gives the segments, positions and distances of the plain
+    search, on points along the paths, off them, far from them and NaN."""
+    rng = np.random.default_rng(11)
+    st = S._stacked(tuple(candidates))
+    pts = np.concatenate([c.points for c in candidates])
+    for xy in [*(pts[rng.integers(0, len(pts), 200)] + rng.normal(0, 1.5, (200, 2))), *rng.uniform(-400, 400, (20, 2))]:
+        x, y = float(xy[0]), float(xy[1])
+        assert S._nearest(st, x, y) == _every_segment(st, x, y)
+    assert S._nearest(st, math.nan, 0.0)[0] == _every_segment(st, math.nan, 0.0)[0]
+
+
+def _shifted(c, dy):
+    """Candidate ``c`` moved by ``dy`` metres along y (a parallel path)."""
+    return dataclasses.replace(c, points=c.points + np.array([0.0, dy]))
+
+
+def test_tracked_state_is_the_row_of_build_states(candidates) -> None:
+    """tracked_state builds one state alone: the row of build_states' states it names, bit for bit,
+    and for path=None the row np.hypot(Δx, Δy).argmin() picks, also where two candidates are at the
+    same distance (a copy of a path: the first) or nearly (between two parallel paths: numpy's hypot
+    decides)."""
+    rng = np.random.default_rng(12)
+    twin = dataclasses.replace(candidates[1])  # the same points, another object
+    parallel = (candidates[0], _shifted(candidates[0], 3.0))
+    sets = [tuple(candidates), (candidates[1], twin, candidates[0]), parallel, (candidates[2],)]
+    checked = ties = 0
+    for cands in sets:
+        pts = np.concatenate([c.points for c in cands])
+        for k in range(40):
+            x, y = pts[rng.integers(0, len(pts))] + rng.normal(0, 1.5, 2)
+            if cands is parallel and k % 2:  # between the two: equidistant, or nearly
+                x, y = cands[0].points[rng.integers(0, len(cands[0].points))] + [0.0, 1.5]
+                y += [0.0, 1e-12, 1e-9, 1e-7, 1e-5, 1e-3][k % 6] * rng.choice([-1.0, 1.0])
+            ego = np.array([x, y, rng.uniform(0, 12), 0.1, rng.uniform(-4, 4), 0.02, 0.01, 0.3])
+            n = int(rng.integers(0, 30))
+            obs = np.column_stack([rng.uniform(-40, 40, (n, 2)) + [x, y], rng.uniform(-3, 3, (n, 4))])
+            kinds = rng.choice(["vehicle", "cyclist", "pedestrian", "tram"], n)
+            others = S.select_others(ego, obs, kinds)
+            for mode in ("pass", "stop"):
+                for preview in (False, True):
+                    states = S.build_states(ego, others, cands, mode, preview)
+                    hyp = np.hypot(states[:, S.DX], states[:, S.DY])
+                    nearest = int(hyp.argmin())
+                    ties += int(np.sum(hyp == hyp[nearest]) > 1)
+                    for path in (None, *range(len(cands))):
+                        index, state = S.tracked_state(ego, obs, kinds, cands, mode, path, preview)
+                        assert index == (nearest if path is None else path)
+                        assert state.tobytes() == states[index].tobytes()
+                        checked += 1
+    assert checked > 1000 and ties > 20

@@ -105,6 +105,7 @@ class CrossroadsEnv(gym.Env[Any, np.ndarray]):
         if path != "nearest" and not (isinstance(path, int) and not isinstance(path, bool) and 0 <= path < n):
             raise ValueError(f"path must be 'nearest' or a candidate index 0..{n - 1}, got {path!r}")
         self.observation_kind: ObservationKind = observation
+        self._every = observation == "dict"  # every candidate's state (the box needs the tracked one's)
         self.path_choice: PathChoice = path
         self.preview = preview
         self.reward_config = reward or RewardConfig()
@@ -129,7 +130,7 @@ class CrossroadsEnv(gym.Env[Any, np.ndarray]):
         super().reset(seed=seed)
         self.episode_seed = int(seed) if seed is not None else int(self.np_random.integers(0, SEED_LIMIT))
         self.observation = self.world.reset(self.episode_seed)
-        self._view = idc_view(self.observation, self.preview, self.path_choice)
+        self._view = idc_view(self.observation, self.preview, self.path_choice, self._every)
         self._done = False
         info = {"seed": self.episode_seed, "scenario": self.scenario.name, "candidates": len(self.candidates),
                 "path": self._view.path, "speed_mode": self._view.speed_mode, "time_s": 0.0}
@@ -153,7 +154,7 @@ class CrossroadsEnv(gym.Env[Any, np.ndarray]):
                      "seed": self.episode_seed, "path": before.path, "speed_mode": before.speed_mode,
                      "utility": parts.utility, "penalty": parts.penalty, "outcome_reward": parts.outcome,
                      "detail": str(exc)})
-        self._view = idc_view(self.observation, self.preview, self.path_choice)
+        self._view = idc_view(self.observation, self.preview, self.path_choice, self._every)
         kind = None if outcome is None else outcome.kind
         parts = reward_parts(self.reward_config, before.state, values[0], values[1], self._view.state, kind)
         info: dict[str, Any] = {

@@ -29,13 +29,13 @@ The speed mode (pass/stop: which profile Δv refers to) is the paper's traffic-l
 IDC decision uses (``idc.lights.choose_speed_mode``). The tracked path: the candidate nearest the
 ego (least √(Δx² + Δy²); ties: the first) by default, or one fixed candidate. With
 ``observation="dict"`` the observation also holds the state of every candidate path, in the
-environment's candidate order, and the index of the tracked one.
+environment's candidate order, and the index of the tracked one. The box observation's state is
+built alone (``idc.state.tracked_state``: the same numbers as the tracked row of every candidate's).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 from gymnasium import spaces
@@ -43,7 +43,7 @@ from gymnasium import spaces
 from crossroads.constants import JERK_MAX, STATE_DIM, STEER_RATE_MAX
 from crossroads.idc.controller import SpeedMode
 from crossroads.idc.lights import choose_speed_mode
-from crossroads.idc.state import DX, DY, PREVIEW_STATE_DIM, build_states, select_others
+from crossroads.idc.state import DX, DY, PREVIEW_STATE_DIM, build_states, select_others, tracked_state
 from crossroads.sim.observation import Observation
 
 ObservationKind = Literal["box", "dict"]
@@ -74,33 +74,40 @@ def observation_space(kind: ObservationKind, width: int, n_candidates: int) -> s
     })
 
 
-@dataclass(frozen=True)
-class IdcView:
-    """The IDC's view of one world observation: every candidate's state and the tracked one."""
+class IdcView(NamedTuple):
+    """The IDC's view of one world observation: the tracked path's state and, when asked for,
+    every candidate's."""
 
-    states: np.ndarray  # (n_candidates, width), float64
+    state: np.ndarray  # (width,) float64, the tracked candidate's
     path: int  # the tracked candidate
     speed_mode: SpeedMode
-
-    @property
-    def state(self) -> np.ndarray:
-        return self.states[self.path]
+    states: np.ndarray | None = None  # (n_candidates, width) float64; None: not built
 
     def observation(self, kind: ObservationKind) -> Any:
         state = self.state.astype(np.float32)
         if kind == "box":
             return state
+        if self.states is None:
+            raise ValueError("the dict observation needs every candidate's state: idc_view(..., every=True)")
         return {"state": state, "candidates": self.states.astype(np.float32), "path": self.path}
 
 
-def idc_view(obs: Observation, preview: bool, path: PathChoice) -> IdcView:
+def idc_view(obs: Observation, preview: bool, path: PathChoice, every: bool = True) -> IdcView:
     """The states of ``obs`` (as :class:`~crossroads.idc.decision.IdcController` builds them: the
-    perceived participants, the light's speed mode) and the path to track."""
+    perceived participants, the light's speed mode) and the path to track.
+
+    With ``every=False`` only the tracked path's state is built (the same numbers:
+    :func:`~crossroads.idc.state.tracked_state`), which is all the box observation needs."""
     mode = choose_speed_mode(
         front_vehicle_stopped_s=obs.front_vehicle_stopped_s, past_stop_line=obs.past_stop_line,
         light=obs.light.light, distance_to_stop_line_m=obs.distance_to_stop_line_m,
         speed_mps=float(obs.ego[2]), yellow_remaining_s=obs.light.remaining_s)
-    others = select_others(obs.ego, obs.perceived.observations, obs.perceived.kinds)
+    seen = obs.perceived
+    if not every:
+        index, state = tracked_state(obs.ego, seen.observations, seen.kinds, obs.candidates, mode,
+                                     None if path == "nearest" else int(path), preview)
+        return IdcView(state, index, mode)
+    others = select_others(obs.ego, seen.observations, seen.kinds)
     states = build_states(obs.ego, others, obs.candidates, mode, preview)
     index = int(np.hypot(states[:, DX], states[:, DY]).argmin()) if path == "nearest" else int(path)
-    return IdcView(states, index, mode)
+    return IdcView(states[index], index, mode, states)

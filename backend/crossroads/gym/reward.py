@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -49,6 +50,8 @@ from crossroads.idc.state import (
     DY,
     N_OTHERS,
     O_L,
+    O_PX,
+    O_PY,
     O_W,
     OMEGA,
     OTHERS,
@@ -100,6 +103,9 @@ _PEDESTRIANS_START = _SLOT_STARTS[_TWO_CIRCLES]
 # constraints' ε): a value of g the screening puts below −_SLACK_M is negative in
 # safety_constraints' own arithmetic, whose rounding errors are ~1e-13 m at intersection scale
 _SLACK_M = 1e-5
+_SCREEN_REACH_M = _EGO_REACH_M + _SLACK_M  # (the sum the screening starts from, as it adds it first)
+# slices of a state's values: every slot's p_x, p_y, L, W
+_XS, _YS, _LS, _WS = (slice(OTHERS.start + k, STATE_DIM, OTHER_STATE_DIM) for k in (O_PX, O_PY, O_L, O_W))
 
 
 def safety_penalty(state: np.ndarray) -> float:
@@ -124,9 +130,11 @@ def _safety_penalty(state: np.ndarray, values: list[float]) -> float:
     """:func:`safety_penalty` of ``state`` (108,), whose values are ``values`` (its ``tolist()``)."""
     px, py = values[PX], values[PY]
     near = []
-    for slot, start in enumerate(_SLOT_STARTS):
-        dx, dy = values[start] - px, values[start + 1] - py
-        reach = _EGO_REACH_M + _SLACK_M + _SLOT_REACH[slot] * max(abs(values[start + O_L]), abs(values[start + O_W]))
+    # each slot's x, y, L, W taken by slices of the values (the same floats, fewer index sums)
+    for start, x, y, length, width, scale in zip(_SLOT_STARTS, values[_XS], values[_YS], values[_LS], values[_WS],
+                                                 _SLOT_REACH):
+        dx, dy = x - px, y - py
+        reach = _SCREEN_REACH_M + scale * max(abs(length), abs(width))
         if not dx * dx + dy * dy > reach * reach:  # (not >: a NaN goes on to the constraints)
             near.append(start)
     if not near:
@@ -164,8 +172,7 @@ def _road_penalty(state: np.ndarray, dy: float, dphi: float) -> float:
     return float(penalty(road_constraints(state)))
 
 
-@dataclass(frozen=True)
-class RewardParts:
+class RewardParts(NamedTuple):
     """One step's reward and what it is made of (``info`` carries them)."""
 
     utility: float

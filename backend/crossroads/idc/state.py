@@ -131,31 +131,43 @@ def select_others(
     empty slots are filled with :func:`pad_participant`. Kinds other than the three are ignored.
     Which rows fill the slots: :func:`selected_rows`.
     """
-    return others_in_slots(ego_xy, observations, selected_rows(ego_xy, observations, kinds), ego_heading)
+    e = np.asarray(ego_xy, dtype=np.float64)
+    obs = np.asarray(observations, dtype=np.float64).reshape(-1, OTHER_STATE_DIM)
+    block = np.empty((N_OTHERS, OTHER_STATE_DIM))
+    _fill_slots(block, obs, _slot_rows(e, obs, np.asarray(kinds)), float(e[0]), float(e[1]), _pad_heading(e, ego_heading))
+    return block
 
 
 def others_in_slots(ego_xy: ArrayLike, observations: ArrayLike, rows: NDArray[np.intp],
                     ego_heading: float | None = None) -> FloatArray:
     """The (16, 6) block of :func:`select_others` from its :func:`selected_rows` (for callers that
-    need the rows too: the sort runs once)."""
+    need the rows too: the sort runs once). ``rows``: −1 (a pad) or a row of ``observations``."""
     e = np.asarray(ego_xy, dtype=np.float64)
-    heading = float(e[PHI]) if (ego_heading is None and e.shape[-1] > PHI) else float(ego_heading or 0.0)
     obs = np.asarray(observations, dtype=np.float64).reshape(-1, OTHER_STATE_DIM)
-    # the pad appended as the last row, which a pad slot's −1 picks: one take for all 16 slots
-    return np.concatenate([obs, [_pad_row(float(e[0]), float(e[1]), heading)]])[rows]
+    block = np.empty((N_OTHERS, OTHER_STATE_DIM))
+    _fill_slots(block, obs, np.asarray(rows).tolist(), float(e[0]), float(e[1]), _pad_heading(e, ego_heading))
+    return block
+
+
+def _pad_heading(ego: FloatArray, ego_heading: float | None) -> float:
+    """The heading the pads take: ``ego_heading`` if given, else the ego state's (0 for an (x, y))."""
+    return float(ego[PHI]) if (ego_heading is None and ego.shape[-1] > PHI) else float(ego_heading or 0.0)
 
 
 def selected_rows(ego_xy: ArrayLike, observations: ArrayLike, kinds: ArrayLike) -> NDArray[np.intp]:
     """(16,) the row of ``observations`` in each slot of :func:`select_others`, −1 for a pad."""
     e = np.asarray(ego_xy, dtype=np.float64)
     obs = np.asarray(observations, dtype=np.float64).reshape(-1, OTHER_STATE_DIM)
-    rows = _NO_ROWS.copy()
+    return np.array(_slot_rows(e, obs, np.asarray(kinds)), dtype=np.intp)
+
+
+def _slot_rows(ego: FloatArray, obs: FloatArray, kinds: np.ndarray) -> list[int]:
+    """:func:`selected_rows` as a list, of the float64 ego (its x, y first) and ``obs`` (n, 6)."""
     if len(obs) == 0:
-        return rows
-    kinds = np.asarray(kinds)
+        return list(_NO_ROWS)
     # the squared distances (x − x_e)² + (y − y_e)², squared in place (x·x: what ** 2 computes)
-    d2 = obs[:, 0] - e[0]
-    dy = obs[:, 1] - e[1]
+    d2 = obs[:, 0] - ego[0]
+    dy = obs[:, 1] - ego[1]
     d2 *= d2
     dy *= dy
     d2 += dy
@@ -164,14 +176,32 @@ def selected_rows(ego_xy: ArrayLike, observations: ArrayLike, kinds: ArrayLike) 
     # fewer numpy calls (this runs every control step on ~100 rows)
     order = d2.argsort(kind="stable")
     ordered_kinds = kinds[order]
-    for kind, start, slots in _KIND_SLOTS:
-        chosen = order[ordered_kinds == kind][:slots]
-        rows[start: start + len(chosen)] = chosen
+    rows: list[int] = []
+    for kind, slots in zip(KINDS, _SLOT_COUNTS):
+        chosen = order[ordered_kinds == kind][:slots].tolist()
+        rows += chosen
+        rows += _PADS[slots - len(chosen)]
     return rows
 
 
-_NO_ROWS = np.full(N_OTHERS, -1, dtype=np.intp)  # every slot a pad (selected_rows copies it)
-_KIND_SLOTS = tuple((kind, KIND_ROWS[kind].start, SLOTS[kind]) for kind in KINDS)  # (kind, first slot, slots)
+def _fill_slots(block: FloatArray, obs: FloatArray, rows: list[int], x: float, y: float, heading: float) -> None:
+    """Write the (16, 6) block of :func:`select_others` into ``block`` (a view may be given): the
+    ``rows`` of ``obs`` (:func:`_slot_rows`), the pad of an ego at (x, y) with ``heading`` where a
+    row is −1."""
+    if len(obs):
+        obs.take(rows, axis=0, out=block, mode="wrap")  # a pad's −1 takes the last row: overwritten below
+    elif max(rows) >= 0:
+        raise IndexError(f"rows {rows} of no observations")
+    if len(obs) == 0 or -1 in rows:
+        pad = _pad_row(x, y, heading)
+        for slot, row in enumerate(rows):
+            if row < 0:
+                block[slot] = pad
+
+
+_NO_ROWS = (-1,) * N_OTHERS  # every slot a pad
+_SLOT_COUNTS = tuple(SLOTS[kind] for kind in KINDS)  # slots of each kind, in slot order
+_PADS = tuple([-1] * k for k in range(max(SLOTS.values()) + 1))  # −1 k times: the pads after k rows
 
 
 def _pad_row(x: float, y: float, heading: float) -> list[float]:
@@ -394,6 +424,9 @@ class _Stacked(NamedTuple):
     s0: np.ndarray  # (C, M) arc length at each segment's start (the path preview)
     ds: np.ndarray  # (C, M) each segment's length in arc length
     ahead: tuple[dict[str, np.ndarray], ...]  # per candidate: s, x, y, unwrapped heading, pass, stop
+    row_starts: np.ndarray  # (C,) c·M: where candidate c's segments start in the flattened (C, M)
+    scale: float  # [m] the largest |coordinate| of the paths' points, and more (the rounding's scale)
+    segments: dict[str, list[list[float]]]  # mode → the rows of pack[mode] as Python floats (made when first asked)
 
 
 _CACHE: dict[tuple[int, ...], _Stacked] = {}
@@ -451,6 +484,7 @@ def _stacked_of(candidates: Sequence[CandidatePath]) -> _Stacked:
         tuple(candidates), pts[..., 0].copy(), pts[..., 1].copy(), ab[..., 0].copy(), ab[..., 1].copy(),
         np.where(len2 > 0, 1.0 / np.where(len2 > 0, len2, 1.0), 0.0), pack,
         np.stack([seg(a, True) for a in arcs]), np.stack([seg(a, False) for a in arcs]), ahead,
+        np.arange(len(candidates)) * m, float(np.abs(pts).max() + np.abs(ab).max()), {},
     )
     if len(_CACHE) >= _CACHE_SIZE:
         _CACHE.pop(next(iter(_CACHE)))
@@ -458,9 +492,17 @@ def _stacked_of(candidates: Sequence[CandidatePath]) -> _Stacked:
     return stacked
 
 
-def _nearest_segments(st: _Stacked, x: float, y: float) -> tuple[np.ndarray, np.ndarray]:
-    """(i (C,), t (C, M)): each candidate's segment nearest to (x, y) (the first of equals) and the
-    position t ∈ [0, 1] of the foot of (x, y) along every segment."""
+def _slack(st: _Stacked, x: float, y: float) -> float:
+    """[m] more than a computed distance between (x, y) and a segment, or the √(Δx² + Δy²) of
+    x_track, can be off the true distance (their rounding: ~1e-16 of the coordinates involved),
+    by far: what :func:`_certain_nearest` keeps clear of."""
+    return 1e-6 + 1e-9 * (abs(x) + abs(y) + st.scale)
+
+
+def _nearest(st: _Stacked, x: float, y: float) -> tuple[list[int], list[float], list[float]]:
+    """(i, w, d), one of each per candidate: its segment nearest to (x, y) (the first of equals),
+    the position w ∈ [0, 1] of the foot of (x, y) along it and the squared distance from (x, y) to
+    that foot, as computed."""
     relx, rely = x - st.ax, y - st.ay
     t = (relx * st.abx + rely * st.aby) * st.inv_len2
     np.maximum(t, 0.0, out=t)
@@ -470,7 +512,9 @@ def _nearest_segments(st: _Stacked, x: float, y: float) -> tuple[np.ndarray, np.
     relx *= relx
     rely *= rely
     relx += rely
-    return relx.argmin(axis=1), t
+    i = relx.argmin(axis=1)
+    flat = i + st.row_starts
+    return i.tolist(), t.take(flat).tolist(), relx.take(flat).tolist()
 
 
 def _check_mode(mode: str) -> None:
@@ -485,12 +529,12 @@ def references(candidates: Sequence[CandidatePath], x: float, y: float, mode: st
     """
     _check_mode(mode)
     st = _stacked(candidates)
-    i, t = _nearest_segments(st, x, y)
-    flat = i + np.arange(len(i)) * t.shape[1]
-    w = t.ravel()[flat]
-    ax, ay, abx, aby, h0, dh, v0, dv = st.pack[mode][flat].T
+    i, fractions, _ = _nearest(st, x, y)
+    w = np.array(fractions)
+    index = np.array(i)
+    ax, ay, abx, aby, h0, dh, v0, dv = st.pack[mode][index + st.row_starts].T
     h = np.mod(h0 + w * dh + math.pi, 2.0 * math.pi) - math.pi
-    return Reference(i, ax + w * abx, ay + w * aby, h, v0 + w * dv)
+    return Reference(index, ax + w * abx, ay + w * aby, h, v0 + w * dv)
 
 
 def build_states(
@@ -505,25 +549,84 @@ def build_states(
     """
     _check_mode(mode)
     e = np.asarray(ego, dtype=np.float64)
-    px, py, vx, phi = e[PX].item(), e[PY].item(), e[VX].item(), e[PHI].item()
     st = _stacked(candidates)
-    i, t = _nearest_segments(st, px, py)
-    n = len(i)
-    flat = i + np.arange(n) * t.shape[1]  # each candidate's nearest segment in the flattened (C, M)
-    w = t.take(flat)
-    out = np.empty((n, PREVIEW_STATE_DIM if preview else STATE_DIM))
+    px, py, vx, _, phi = e[:PHI + 1].tolist()
+    i, w, _ = _nearest(st, px, py)
+    out = np.empty((len(w), PREVIEW_STATE_DIM if preview else STATE_DIM))
     out[:, EGO] = e
     out[:, OTHERS] = np.asarray(others16, dtype=np.float64).reshape(-1)
-    # x_track of the few candidates on Python floats: the arithmetic of references() and
-    # tracking_error element by element (same numbers; math.cos/sin give numpy's float64
-    # cos/sin, tests/idc/test_state.py), without ~40 numpy calls on arrays of 3
-    track: list[float] = []
-    for fraction, seg in zip(w.tolist(), st.pack[mode].take(flat, axis=0).tolist()):
-        track += _track(px, py, vx, phi, fraction, *seg)
-    out[:, TRACK] = np.array(track).reshape(n, TRACK_STATE_DIM)
+    out[:, TRACK] = _tracks(st, i, w, mode, px, py, vx, phi)
     if preview:
-        out[:, PREVIEW] = _preview_numpy(st, e, i, w, mode)
+        out[:, PREVIEW] = _preview_numpy(st, e, np.array(i), np.array(w), mode)
     return out
+
+
+def tracked_state(
+    ego: ArrayLike, observations: ArrayLike, kinds: ArrayLike, candidates: Sequence[CandidatePath],
+    mode: str, path: int | None = None, preview: bool = False,
+) -> tuple[int, FloatArray]:
+    """(the tracked candidate, its state): the row ``path`` of ``build_states(ego,
+    select_others(ego, observations, kinds), candidates, mode, preview)``, the same numbers, built
+    alone. ``path=None`` tracks the candidate nearest the ego: least √(Δx² + Δy²), the first of
+    equals, ``np.hypot(states[:, DX], states[:, DY]).argmin()`` of those states.
+
+    For a caller that needs one state a step (the Gymnasium environment): x_track is computed for
+    the tracked candidate only when the segment search tells the nearest for certain
+    (:func:`_certain_nearest`), the others are written straight into the state, and no state of
+    the other candidates is assembled.
+    """
+    _check_mode(mode)
+    e = np.asarray(ego, dtype=np.float64)
+    obs = np.asarray(observations, dtype=np.float64).reshape(-1, OTHER_STATE_DIM)
+    st = _stacked(candidates)
+    px, py, vx, _, phi = e[:PHI + 1].tolist()
+    i, w, d = _nearest(st, px, py)
+    index = _certain_nearest(d, _slack(st, px, py)) if path is None else range(len(w))[path]
+    if index is None:  # a tie or a near one: numpy's hypot of every candidate's x_track decides
+        tracks = _tracks(st, i, w, mode, px, py, vx, phi)
+        index = int(np.hypot([t[0] for t in tracks], [t[1] for t in tracks]).argmin())
+    segment = _segments(st, mode)[i[index] + index * st.ax.shape[1]]
+    out = np.empty(PREVIEW_STATE_DIM if preview else STATE_DIM)
+    out[EGO] = e
+    out[TRACK] = _track(px, py, vx, phi, w[index], *segment)
+    _fill_slots(out[OTHERS].reshape(N_OTHERS, OTHER_STATE_DIM), obs, _slot_rows(e, obs, np.asarray(kinds)),
+                px, py, phi)
+    if preview:  # every candidate's, as build_states computes them, and the tracked one's kept
+        out[PREVIEW] = _preview_numpy(st, e, np.array(i), np.array(w), mode)[index]
+    return index, out
+
+
+def _certain_nearest(d: list[float], slack: float) -> int | None:
+    """The candidate of least √(Δx² + Δy²) from the squared distances ``d`` of the segment search
+    (:func:`_nearest`), when they tell it for certain: both measure the distance from the ego to
+    the same foot and differ by rounding only (< ``slack``), so a candidate nearer than every other
+    by more than twice that is the nearest by either. None otherwise (ties, near ties, NaN)."""
+    if len(d) == 1:
+        return 0
+    ranked = sorted(d)
+    least = ranked[0]
+    if math.isfinite(sum(d)) and math.sqrt(ranked[1]) > math.sqrt(least) + 2.0 * slack:
+        return d.index(least)
+    return None
+
+
+def _tracks(st: _Stacked, i: list[int], w: list[float], mode: str, px: float, py: float, vx: float,
+            phi: float) -> list[list[float]]:
+    """x_track of each candidate against the foot a fraction ``w[c]`` along its segment ``i[c]``."""
+    # on Python floats: the arithmetic of references() and tracking_error element by element (same
+    # numbers; math.cos/sin give numpy's float64 cos/sin, tests/idc/test_state.py), without ~40
+    # numpy calls on arrays of 3
+    segments, m = _segments(st, mode), st.ax.shape[1]
+    return [_track(px, py, vx, phi, fraction, *segments[k + c * m]) for c, (k, fraction) in enumerate(zip(i, w))]
+
+
+def _segments(st: _Stacked, mode: str) -> list[list[float]]:
+    """The rows of ``st.pack[mode]`` (one per segment) as Python floats: a segment's row without a
+    numpy call."""
+    rows = st.segments.get(mode)
+    if rows is None:
+        rows = st.segments[mode] = st.pack[mode].tolist()
+    return rows
 
 
 def _preview_numpy(st: _Stacked, ego: FloatArray, i: NDArray[np.intp], w: FloatArray, mode: str) -> FloatArray:
