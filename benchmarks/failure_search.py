@@ -142,10 +142,8 @@ def stored_replays(out_dir: Path) -> dict[str, str]:
     return out
 
 
-def failing_cells(db: str, search_id: int, bins: int = CELL_BINS) -> int:
-    """How many cells of the space hold a failing episode of the search, each range cut in
-    ``bins`` equal parts (each choice a part of its own): a count of distinct failures that
-    near-copies of one failure cannot inflate."""
+def failing_points(db: str, search_id: int) -> tuple[Any, list[dict[str, Any]]]:
+    """(the search's space, the params of its failing search episodes in trial order), read once."""
     from crossroads.search import records
     from crossroads.search.engine import stored_space
     from crossroads.search.objective import FAILURE_VALUE
@@ -161,6 +159,13 @@ def failing_cells(db: str, search_id: int, bins: int = CELL_BINS) -> int:
                        if t.objective == FAILURE_VALUE]
     finally:
         store.close()
+    return space, failing
+
+
+def failing_cells(space: Any, failing: list[dict[str, Any]], bins: int = CELL_BINS) -> int:
+    """How many cells of the space hold a failing episode (:func:`failing_points`), each range cut
+    in ``bins`` equal parts (each choice a part of its own): a count of distinct failures that
+    near-copies of one failure cannot inflate."""
     cells = set()
     for params in failing:
         cell = []
@@ -232,26 +237,11 @@ def throughput(args: argparse.Namespace, space: Path, work: Path, env: dict[str,
     return 0 if same_points and not differ else 1
 
 
-def separated_failures(db: str, search_id: int, radius: float) -> int:
-    """How many failing episodes of the search are at least ``radius`` apart: taken in trial order,
-    a failure counts when every one counted before differs from it by ``radius`` or more of some
-    parameter's range (or in a choice). Near-copies of one failure (the same region, another
-    seed) count once; ``failing_cells`` is the same idea on a fixed grid."""
-    from crossroads.search import records
-    from crossroads.search.engine import stored_space
-    from crossroads.search.objective import FAILURE_VALUE
-    from crossroads.store import open_store
-
-    store = open_store(db)
-    try:
-        with store.session() as session:
-            search = records.get_search(session=session, search_id=search_id)
-            assert search is not None
-            space = stored_space(search.space, search_id)
-            failing = [t.params for t in records.trials(session=session, search_id=search_id, kind="search")
-                       if t.objective == FAILURE_VALUE]
-    finally:
-        store.close()
+def separated_failures(space: Any, failing: list[dict[str, Any]], radius: float) -> int:
+    """How many failing episodes (:func:`failing_points`) are at least ``radius`` apart: taken in
+    trial order, a failure counts when every one counted before differs from it by ``radius`` or
+    more of some parameter's range (or in a choice). Near-copies of one failure (the same region,
+    another seed) count once; ``failing_cells`` is the same idea on a fixed grid."""
     kept: list[dict[str, Any]] = []
     for params in failing:
         def apart(other: dict[str, Any], params: dict[str, Any] = params) -> bool:
@@ -335,7 +325,8 @@ def main() -> int:
                   if replayed.get(name) != outcome}
         all_replayed &= not differ
         per_1000 = 1000.0 * summary["distinct_failures"] / summary["searched"] if summary["searched"] else 0.0
-        cells = failing_cells(db, summary["search_id"])
+        space, failing = failing_points(db, summary["search_id"])
+        cells = failing_cells(space, failing)
         low, high = wilson_interval(summary["failing"], summary["searched"])
         figures["arms"][sampler] = {
             "episodes": summary["searched"], "outcomes": summary["outcomes"],
@@ -344,8 +335,8 @@ def main() -> int:
             "distinct_failures": summary["distinct_failures"],
             "distinct_per_1000": round(per_1000, 1), "failure_modes": summary["failure_modes"],
             "failing_cells": cells,
-            "separated_10pct": separated_failures(db, summary["search_id"], 0.1),
-            "separated_20pct": separated_failures(db, summary["search_id"], 0.2),
+            "separated_10pct": separated_failures(space, failing, 0.1),
+            "separated_20pct": separated_failures(space, failing, 0.2),
             "cells_per_1000": round(1000.0 * cells / summary["searched"], 1) if summary["searched"] else 0.0,
             "shrink_episodes": summary["shrink_episodes"], "replayed_same": same,
             "stored": len(stored), "replay_differs": differ, "wall_s": summary.get("wall_s")}

@@ -10,13 +10,11 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-import numpy as np
 
 from crossroads.evaluation.sumo_driver import SumoDriverPolicy
 from crossroads.evaluation.near_miss import NearMissTracker
 from crossroads.evaluation.trace import TraceRecorder
 from crossroads.idc.controller import Controller
-from crossroads.sim.observation import GroundTruth, Observation
 from crossroads.sim.outcome import Outcome
 from crossroads.sim.world import World
 
@@ -49,14 +47,6 @@ class EpisodeResult:
         return asdict(self)
 
 
-def _closest_distance(observation: Observation, truth: GroundTruth) -> float:
-    """[m] the closest true centre distance from the ego to any other participant."""
-    snap = truth.participants
-    if len(snap) == 0:
-        return float("inf")
-    return float(np.min(np.hypot(snap.x - observation.ego[0], snap.y - observation.ego[1])))
-
-
 def run_episode(
     world: World,
     controller: Controller,
@@ -76,7 +66,6 @@ def run_episode(
     if recorder is not None:
         recorder.start(world, seed, scenario=scenario_name)
     events: list[dict[str, Any]] = []
-    min_distance = _closest_distance(observation, world.truth)
     near_miss = NearMissTracker()
     near_miss.update(observation, world.truth)
     last_mode = last_path = None
@@ -101,7 +90,6 @@ def run_episode(
             recorder.record(observation, decision, world.truth)
         observation, outcome = world.step(None if sumo_drives else decision.action)
         steps += 1
-        min_distance = min(min_distance, _closest_distance(observation, world.truth))
         near_miss.update(observation, world.truth)
     crossed = world.stop_line_crossed_s
     travel = outcome.time_s - crossed if outcome.kind == "passed" and crossed is not None else None
@@ -119,7 +107,7 @@ def run_episode(
         steps=steps,
         time_s=round(outcome.time_s, 3),
         travel_time_s=None if travel is None else round(travel, 3),
-        min_distance_m=round(min_distance, 3),
+        min_distance_m=round(near_miss.min_distance_m, 3),
         detail=outcome.detail,
         collided_with=outcome.other_kind,
         events=events,

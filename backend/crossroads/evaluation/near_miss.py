@@ -42,6 +42,7 @@ class NearMissTracker:
     """Accumulates the near-miss figures over an episode's observations (:meth:`update` each)."""
 
     def __init__(self) -> None:
+        self.min_distance_m = math.inf  # closest centre distance to anyone (inf: nobody around)
         self.min_gap_m = math.inf
         self.min_ttc_s = math.inf
         self.red_stop_margin_m = math.inf
@@ -54,6 +55,7 @@ class NearMissTracker:
         if len(snap):
             dx, dy = snap.x - x, snap.y - y
             distance = np.hypot(dx, dy)
+            self.min_distance_m = min(self.min_distance_m, float(distance.min()))
             c, s = math.cos(heading), math.sin(heading)
             vx = float(ego[2]) * c - float(ego[3]) * s  # body-frame speeds turned to the world
             vy = float(ego[2]) * s + float(ego[3]) * c
