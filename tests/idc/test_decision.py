@@ -12,7 +12,7 @@ import torch
 
 from crossroads.constants import EGO_LENGTH_M, JERK_MAX, STEER_RATE_MAX, STOP_LINE_GAP_M
 from crossroads.idc.crosswalks import CrossingSpan, crossing_spans
-from crossroads.idc.decision import HELD_CROSSING_RELEASE_STEPS, IdcController
+from crossroads.idc.decision import HELD_CROSSING_RELEASE_STEPS, IdcController, least_value_path
 from crossroads.idc.shield import HOLD_WHEEL
 from crossroads.idc.state import build_states, select_others
 from crossroads.intersections import catalogue
@@ -170,3 +170,16 @@ def test_a_crossing_the_shield_braked_for_stays_its_line_while_claimed_and_green
     not_green = dataclasses.replace(late, light=dataclasses.replace(late.light, light="yellow"))
     assert controller._shield_line(False, not_green, 0) == (None, None)  # clear the junction instead
     assert controller._held_crossing is None
+
+
+@pytest.mark.parametrize(("values", "best"), [
+    ([3.0, 1.0, 2.0], 1),                   # a clear least
+    ([14.909682, 14.909680], 0),            # torch's near-tie of the fine-tuned APG: the first path
+    ([14.909687, 14.909688], 0),            # onnxruntime's, the other way round: the first again
+    ([2.0, 1.0, 1.000001], 1),              # a tie after the least goes to the least (the first of them)
+    ([1.0001, 1.0], 1),                     # 1e-4 apart is a real difference
+    ([1e-7, 0.0, 5.0], 0),                  # near zero the absolute floor decides
+    ([-10.0, -10.00001], 0),                # negative values: relative to |least|
+])
+def test_the_path_of_least_value_with_near_ties_to_the_first(values: list[float], best: int) -> None:
+    assert least_value_path(np.array(values)) == best
