@@ -183,3 +183,20 @@ def test_a_crossing_the_shield_braked_for_stays_its_line_while_claimed_and_green
 ])
 def test_the_path_of_least_value_with_near_ties_to_the_first(values: list[float], best: int) -> None:
     assert least_value_path(np.array(values)) == best
+
+
+@pytest.mark.parametrize(("preview", "encoder"), [(False, 0), (True, 0), (True, 16)])
+def test_one_normalisation_for_both_networks_gives_the_same_decision(preview: bool, encoder: int) -> None:
+    torch.manual_seed(3)
+    nets = make_networks("dpg", 2, 32, preview=preview, encoder=encoder)
+    controller = IdcController(nets.policy, nets.value)
+    assert controller._shared_input
+    states = np.random.default_rng(5).normal(size=(40, 3, 120 if preview else 108)) * 5.0
+    for candidates in states:
+        shared = controller.decide_states(candidates)
+        controller._shared_input = False
+        apart = controller.decide_states(candidates)
+        controller._shared_input = True
+        assert shared[0] == apart[0]
+        np.testing.assert_array_equal(shared[1], apart[1])
+        np.testing.assert_array_equal(shared[2], apart[2])

@@ -24,7 +24,7 @@ from crossroads.idc.crosswalks import CrossingSpan, can_stand_short_of, claims_a
 from crossroads.idc.lights import light_holds_at_line, speed_mode_from
 from crossroads.idc.observed import observed_others
 from crossroads.idc.shield import shield_action
-from crossroads.idc.state import build_states, select_others
+from crossroads.idc.state import build_states, network_input, select_others
 from crossroads.planning import CandidatePath
 from crossroads.sim.ego import braking_distance_m
 from crossroads.sim.observation import Observation
@@ -60,6 +60,11 @@ class IdcController:
         self._unclaimed_steps = 0  # steps in a row no one has claimed the held crossing
         # networks built with the path preview read 120-value states (crossroads.idc.state)
         self.preview = bool(getattr(policy, "preview", False))
+        # the torch networks of crossroads.rl.neural_nets normalise their input (network_input)
+        # themselves; when the two read it alike, a decision normalises its candidates once for both
+        self._shared_input = (hasattr(value, "value_of_input") and hasattr(policy, "distribution_of_input")
+                              and getattr(policy, "low", None) is not None and policy.low.dtype == self._dtype
+                              and (policy.preview, policy.lead) == (value.preview, value.lead))
 
     def reset(self, candidates: Sequence[CandidatePath]) -> None:
         self._candidates = tuple(candidates)
@@ -77,9 +82,16 @@ class IdcController:
         with torch.inference_mode():
             batch = torch.from_numpy(np.ascontiguousarray(states)).to(self._dtype)
             # identical states get one value, the first's: a tie goes to the first path (below)
-            values = self.value(batch)[torch.from_numpy(first_identical(states))].double().numpy()
-            best = least_value_path(values)
-            action = self.policy.mean_action(batch[best:best + 1])[0]
+            same = torch.from_numpy(first_identical(states))
+            if self._shared_input:  # the same numbers as the branch below, one normalisation fewer
+                x = network_input(batch, self.policy.preview, self.policy.lead)
+                values = self.value.value_of_input(x)[same].double().numpy()
+                best = least_value_path(values)
+                action = self.policy.squash(self.policy.distribution_of_input(x[best:best + 1])[0])[0]
+            else:
+                values = self.value(batch)[same].double().numpy()
+                best = least_value_path(values)
+                action = self.policy.mean_action(batch[best:best + 1])[0]
         return best, action.double().numpy(), values
 
     def decide(self, observation: Observation) -> Decision:

@@ -152,7 +152,11 @@ class SquashedGaussianPolicy(nn.Module):
 
     def distribution(self, states: Tensor) -> tuple[Tensor, Tensor]:
         """(mean, log_std) of z, each ``[..., dim]``."""
-        x = network_input(states, self.preview, self.lead).to(self.low.dtype)
+        return self.distribution_of_input(network_input(states, self.preview, self.lead).to(self.low.dtype))
+
+    def distribution_of_input(self, x: Tensor) -> tuple[Tensor, Tensor]:
+        """:meth:`distribution` of states already through :func:`network_input` (in this network's
+        dtype): an online decision normalises its candidates' states once for both networks."""
         out = self.net(x if self.encoder is None else self.encoder(x))
         mean, log_std = out[..., : self.dim], out[..., self.dim:]
         return mean, torch.clamp(log_std, LOG_STD_MIN, LOG_STD_MAX)
@@ -216,7 +220,10 @@ class ValueNet(nn.Module):
 
     def forward(self, states: Tensor) -> Tensor:
         param = next(self.parameters())
-        x = network_input(states, self.preview, self.lead).to(param.dtype)
+        return self.value_of_input(network_input(states, self.preview, self.lead).to(param.dtype))
+
+    def value_of_input(self, x: Tensor) -> Tensor:
+        """:meth:`forward` of states already through :func:`network_input` (in this network's dtype)."""
         return torch.relu(self.net(x if self.encoder is None else self.encoder(x))).squeeze(-1)
 
 
