@@ -11,7 +11,7 @@ import torch
 from crossroads.constants import (
     ACCEL_MAX, ACCEL_MIN, DT_S, I_Z, JERK_MAX, K_F, K_R, L_F, L_R, MASS_KG, STEER_MAX, STEER_RATE_MAX,
 )
-from crossroads.sim.ego import braking_distance_m, clip_action, ego_step
+from crossroads.sim.ego import braking_distance_m, clip_action, ego_step, ego_step_floats
 
 
 def paper_step(s, u, dt=DT_S):
@@ -137,6 +137,18 @@ def test_single_state_fast_path_equals_the_batched_and_torch_paths() -> None:
         np.testing.assert_allclose(single, ego_step(state[None], action[None])[0], rtol=0, atol=1e-12)
         np.testing.assert_allclose(single, ego_step(torch.tensor(state), torch.tensor(action)).numpy(),
                                    rtol=0, atol=1e-12)
+
+
+def test_float_steps_are_the_single_state_path_exactly() -> None:
+    """ego_step_floats (the shield's backups) gives ego_step's numbers bit for bit, step after step."""
+    rng = np.random.default_rng(12)
+    for _ in range(50):
+        state = rng.uniform([-50, -50, 0, -1, -3, -1, -0.5, -3.5], [50, 50, 12, 1, 3, 1, 0.5, 2.0])
+        floats = tuple(state.tolist())
+        for action in rng.uniform(-6.0, 6.0, (40, 2)):
+            state = ego_step(state, action)
+            floats = ego_step_floats(floats, float(action[0]), float(action[1]))
+            assert state.tolist() == list(floats)
 
 
 def test_braking_distance_follows_f_ego() -> None:

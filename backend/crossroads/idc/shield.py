@@ -71,7 +71,7 @@ from crossroads.constants import DT_S, JERK_MAX, OTHER_DECEL_MPS2, STEER_RATE_MA
 from crossroads.geometry import wrap_scalar
 from crossroads.idc.constraints import SAFETY_MARGIN_M, deepest_by_slot, safety_constraints
 from crossroads.idc.state import DELTA, KIND_ROWS, N_OTHERS, O_L, O_PHI, O_PX, O_PY, O_V, PHI, PX, PY
-from crossroads.sim.ego import ego_step
+from crossroads.sim.ego import ego_step_floats
 
 # [m] the clearance the backups must keep between circles: the training constraints' safety margin.
 # With none (the bodies' circles only) the ego braked from 3.6 m/s at the last moment the model
@@ -178,10 +178,23 @@ EXIT_ALIGNED_RAD = math.radians(15.0)
 def braking_action(ego: np.ndarray, exit_heading: float | None = None) -> np.ndarray:
     """The shield's braking step from ``ego`` (8,): full braking, the wheel held (``HOLD_WHEEL``, read
     only), or turned back toward straight once the ego heads within ``EXIT_ALIGNED_RAD`` of
-    ``exit_heading``. On Python floats: it runs for every step of both backups."""
-    if exit_heading is None or abs(wrap_scalar(float(ego[PHI]) - exit_heading)) >= EXIT_ALIGNED_RAD:
+    ``exit_heading``."""
+    if _holds_wheel(float(ego[PHI]), exit_heading):
         return HOLD_WHEEL
-    return np.array([min(max(-float(ego[DELTA]) / DT_S, -STEER_RATE_MAX), STEER_RATE_MAX), -JERK_MAX])
+    return np.array(_braking_floats(float(ego[PHI]), float(ego[DELTA]), exit_heading))
+
+
+def _holds_wheel(phi: float, exit_heading: float | None) -> bool:
+    """Whether braking at heading ``phi`` holds the wheel (:func:`braking_action`)."""
+    return exit_heading is None or abs(wrap_scalar(phi - exit_heading)) >= EXIT_ALIGNED_RAD
+
+
+def _braking_floats(phi: float, delta: float, exit_heading: float | None) -> tuple[float, float]:
+    """:func:`braking_action` of an ego at heading ``phi`` with wheel angle ``delta``, as two
+    Python floats (it runs for every step of both backups)."""
+    if _holds_wheel(phi, exit_heading):
+        return 0.0, -JERK_MAX
+    return min(max(-delta / DT_S, -STEER_RATE_MAX), STEER_RATE_MAX), -JERK_MAX
 
 
 # [m] an obstacle counts as intruded deeper along one backup than the other only past this: below
@@ -240,13 +253,18 @@ def backups(ego: np.ndarray, others: np.ndarray, kappa: np.ndarray, action: np.n
     """*go* and *brake* from ``ego`` (8,) with the policy's ``action`` (2,) (module docstring),
     against every participant of ``others`` (16, 6) turning by ``kappa`` (16,) in both futures and,
     when the light holds the ego at the line, ``line_m`` ahead of its front bumper."""
-    egos = np.empty((steps, 2, 8))
     ego = np.asarray(ego, np.float64)
-    for row, first in ((_GO, np.asarray(action, np.float64)), (_BRAKE, braking_action(ego, exit_heading))):
-        state = ego_step(ego, first)  # (8,): f_ego on floats
-        for i in range(steps):
-            egos[i, row] = state
-            state = ego_step(state, braking_action(state, exit_heading))
+    start = ego.tolist()
+    go = np.asarray(action, np.float64).reshape(2).tolist()
+    rollouts = []
+    for first in (go, _braking_floats(start[PHI], start[DELTA], exit_heading)):  # _GO, _BRAKE
+        state = ego_step_floats(start, *first)  # f_ego on Python floats: 80 steps a decision
+        rollout = []
+        for _ in range(steps):
+            rollout.append(state)
+            state = ego_step_floats(state, *_braking_floats(state[PHI], state[DELTA], exit_heading))
+        rollouts.append(rollout)
+    egos = np.ascontiguousarray(np.array(rollouts, dtype=np.float64).reshape(2, steps, 8).transpose(1, 0, 2))
     by_slot = _deepest_by_slot(ego, egos, np.asarray(others, np.float64), np.asarray(kappa, np.float64), steps)
     past = (np.full(2, -np.inf) if line_m is None
             else travelled_m(ego, egos) - (line_m - STOP_LINE_GAP_M))  # (2,)

@@ -29,6 +29,7 @@ tensors every operation is differentiable (the clips pass gradient inside their 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -67,9 +68,7 @@ def ego_step(state: Any, action: Any, dt: float = DT_S) -> Any:
     """
     if isinstance(state, np.ndarray) and state.shape == (8,) and not is_torch(action):
         u = np.asarray(action, dtype=np.float64)
-        d_delta = ScalarOps.clip(float(u[0]), -STEER_RATE_MAX, STEER_RATE_MAX)
-        d_acc = ScalarOps.clip(float(u[1]), -JERK_MAX, JERK_MAX)
-        return np.array(_f_ego(ScalarOps, *state.tolist(), d_delta, d_acc, dt), dtype=state.dtype
+        return np.array(ego_step_floats(state.tolist(), float(u[0]), float(u[1]), dt), dtype=state.dtype
                         if state.dtype.kind == "f" else np.float64)
     xp = ops(state, action)
     state = xp.asarray(state, like=state)
@@ -77,6 +76,14 @@ def ego_step(state: Any, action: Any, dt: float = DT_S) -> Any:
     u = clip_action(action)
     parts = _f_ego(xp, *(state[..., i] for i in range(8)), u[..., 0], u[..., 1], dt)
     return xp.stack(list(parts), axis=-1)
+
+
+def ego_step_floats(state: Sequence[float], d_delta: float, d_acc: float, dt: float = DT_S) -> tuple[float, ...]:
+    """:func:`ego_step` of one state (8 Python floats) and one action [Δδ, Δa], on Python floats: the
+    same numbers as ``ego_step(np.array(state), np.array([d_delta, d_acc]))``, for loops that step one
+    ego many times (the safety shield's backups: 80 steps a decision)."""
+    return _f_ego(ScalarOps, *state, ScalarOps.clip(d_delta, -STEER_RATE_MAX, STEER_RATE_MAX),
+                  ScalarOps.clip(d_acc, -JERK_MAX, JERK_MAX), dt)
 
 
 def _f_ego(xp: Any, px: Any, py: Any, vx: Any, vy: Any, phi: Any, omega: Any, delta: Any, acc: Any,
