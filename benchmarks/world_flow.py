@@ -158,7 +158,13 @@ def main() -> int:
                 if k["demand"] and abs(ratio - 1.0) > 0.10:
                     ok = False
             print(f"  {f['intersection']:20} " + "; ".join(cells))
-    print(f"\ntargets {'met' if ok else 'NOT met'}")
+    nominal = any(Path(path).parent.name == "nominal" for path in scenarios)
+    checked = [text for applies, text in (
+        (SUMO_POLICY in policies and nominal, "SUMO's driver >= 98 % of every nominal scenario, no collision"),
+        (True, "at most 1 blocked run per scenario"),
+        ("rule" in policies and nominal, "the rule controller >= 90 % (c_three_lane left), >= 95 % (straight, right)"),
+        (bool(flows), "every flow within 10 % of its demand")) if applies]
+    print(f"\ntargets {'met' if ok else 'NOT met'} ({'; '.join(checked)})")
     if args.json:
         args.json.write_text(json.dumps({"base_seed": args.base_seed, "runs": args.runs,
                                          "episodes": {f"{Path(p).stem}|{pol}": e for (p, pol), e in results.items()},
