@@ -50,9 +50,10 @@ def scenes(seeds: int, base_seed: int) -> list[tuple[Path, int]]:
 
 
 def collect(expert: IdcController, student: IdcController, scene_list: list[tuple[Path, int]],
-            expert_drives: bool) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
-    """(student inputs (n, width), labels before tanh (n, 2), outcomes) of the scenes."""
-    states, labels, outcomes = [], [], {}
+            expert_drives: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, int]]:
+    """(student inputs (n, width), labels before tanh (n, 2), whether the shield braked (n,),
+    outcomes) of the scenes."""
+    states, labels, braked, outcomes = [], [], [], {}
     for path, seed in scene_list:
         spec = load_scenario(path)
         config = dataclasses.replace(to_world_config(spec, path.parent), timeout_s=60.0)
@@ -68,21 +69,27 @@ def collect(expert: IdcController, student: IdcController, scene_list: list[tupl
                                    world.candidates, mode, student.preview)[label.path_index]
                 states.append(row)
                 labels.append(np.arctanh(np.clip(label.action / SCALE, -0.999, 0.999)).clip(-Z_LIMIT, Z_LIMIT))
+                braked.append(bool(label.shield_braking))
                 action = label.action if expert_drives else student.decide(obs).action
                 obs, outcome = world.step(action)
             outcomes[outcome.kind] = outcomes.get(outcome.kind, 0) + 1
-    return np.array(states), np.array(labels), outcomes
+    return np.array(states), np.array(labels), np.array(braked), outcomes
 
 
-def fit(policy: torch.nn.Module, states: np.ndarray, z: np.ndarray, steps: int, lr: float, seed: int) -> float:
-    """Adam on the MSE between the policy's mean z and the labels; the last 100 steps' mean loss."""
+def fit(policy: torch.nn.Module, states: np.ndarray, z: np.ndarray, weights: np.ndarray, steps: int, lr: float,
+        seed: int) -> float:
+    """Adam on the MSE between the policy's mean z and the labels, batches drawn in proportion to
+    ``weights``; the last 100 steps' mean loss."""
     x, y = torch.as_tensor(states, dtype=torch.float32), torch.as_tensor(z, dtype=torch.float32)
+    w = torch.as_tensor(weights, dtype=torch.float64)
     generator = torch.Generator().manual_seed(seed)
+    uniform = bool(np.all(weights == weights[0]))  # drawn as before weights existed: the same runs
     optimiser = torch.optim.Adam(policy.parameters(), lr=lr)
     policy.train()
     losses = []
     for _ in range(steps):
-        rows = torch.randint(len(x), (min(256, len(x)),), generator=generator)
+        rows = (torch.randint(len(x), (min(256, len(x)),), generator=generator) if uniform
+                else torch.multinomial(w, min(256, len(x)), replacement=True, generator=generator))
         mean, _ = policy.distribution(x[rows])
         loss = torch.nn.functional.mse_loss(mean, y[rows])
         optimiser.zero_grad()
@@ -116,6 +123,8 @@ def main() -> None:
     parser.add_argument("--fit-steps", type=int, default=1500)
     parser.add_argument("--lr", type=float, default=1e-4)
     parser.add_argument("--base-seed", type=int, default=7)
+    parser.add_argument("--braking-weight", type=float, default=1.0,
+                        help="how much more often a state the shield braked in is drawn for the fit")
     args = parser.parse_args()
     torch.set_num_threads(1)
     started = time.monotonic()
@@ -123,17 +132,19 @@ def main() -> None:
     expert = IdcController(nets.policy, nets.value, shield=True)
     student_policy = copy.deepcopy(nets.policy)
     student = IdcController(student_policy, nets.value)
-    all_states, all_z, notes = [], [], []
+    all_states, all_z, all_w, notes = [], [], [], []
     for r in range(args.rounds):
         t0 = time.monotonic()
-        states, z, outcomes = collect(expert, student, scenes(args.seeds, args.base_seed + r), expert_drives=(r == 0))
+        states, z, braked, outcomes = collect(expert, student, scenes(args.seeds, args.base_seed + r), expert_drives=(r == 0))
         all_states.append(states)
         all_z.append(z)
+        all_w.append(np.where(braked, args.braking_weight, 1.0))
         with torch.no_grad():
             before = float(((student_policy.distribution(torch.as_tensor(states, dtype=torch.float32))[0].numpy() - z) ** 2).mean())
-        loss = fit(student_policy, np.concatenate(all_states), np.concatenate(all_z), args.fit_steps, args.lr, r)
+        loss = fit(student_policy, np.concatenate(all_states), np.concatenate(all_z), np.concatenate(all_w),
+                   args.fit_steps, args.lr, r)
         line = (f"round {r}: {'expert' if r == 0 else 'student'} drove {sum(outcomes.values())} episodes {outcomes}; "
-                f"{len(states)} states, label MSE before the fit {before:.3f}, fit loss {loss:.3f} ({time.monotonic() - t0:.0f} s)")
+                f"{len(states)} states ({int(braked.sum())} braked), label MSE before the fit {before:.3f}, fit loss {loss:.3f} ({time.monotonic() - t0:.0f} s)")
         print(line, flush=True)
         notes.append(line)
         write(args.out, args.source, (student_policy, nets.value, nets.adversary), config,
