@@ -26,41 +26,22 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import time
 from pathlib import Path
 
-import numpy as np
 import torch
 from torch import Tensor
 
-from crossroads.constants import PENALTY_RHO, TOTAL_ITERATIONS
+from crossroads.constants import PENALTY_RHO
 from crossroads.rl.buffer import Samples, to_batch
-from crossroads.rl.checkpoint import FORMAT, load_networks
+from crossroads.rl.checkpoint import load_networks
 from crossroads.rl.distill import collect_episodes
-from crossroads.rl.export import changed_from_defaults, hardware, lineage
+from crossroads.rl.export import write_refitted_model
 from crossroads.rl.idc_model import IDCModel
-from crossroads.rl.neural_nets import Networks
 from crossroads.rl.sampler import PathSet
 
-from probing import ACTION_SCALE, optimise_plans
-
-Z_LIMIT = 3.0  # (choice) labels before tanh are clipped here: tanh(3) = 0.995 of the range
-
-
-def policy_plan(model: IDCModel, policy: torch.nn.Module, batch, horizon: int) -> tuple[Tensor, Tensor]:
-    """(the policy's plan over ``horizon`` steps before tanh (B, T, 2), its J_π (B,))."""
-    actions: list[Tensor] = []
-
-    def act(s: Tensor, _: int) -> Tensor:
-        actions.append(policy.mean_action(s))
-        return actions[-1]
-
-    with torch.no_grad():
-        out = model.rollout(batch, act, None, horizon)
-    scale = ACTION_SCALE.to(out.s0.dtype)
-    raw = torch.atanh((torch.stack(actions, 1) / scale).clamp(-0.999, 0.999))
-    return raw, out.j_track + PENALTY_RHO * out.j_safe
+from imitation import Z_LIMIT, fit_mean
+from probing import ACTION_SCALE, optimise_plans, policy_plan
 
 
 def label(model: IDCModel, policy: torch.nn.Module, samples: Samples, horizon: int, steps: int,
@@ -69,7 +50,8 @@ def label(model: IDCModel, policy: torch.nn.Module, samples: Samples, horizon: i
     states, targets, j_policy, j_best, first_policy = [], [], [], [], []
     for start in range(0, len(samples), chunk):
         batch = to_batch(samples.take(slice(start, start + chunk)))
-        raw, j_pi = policy_plan(model, policy, batch, horizon)
+        raw, plan = policy_plan(model, policy, batch, horizon)
+        j_pi = plan.j_track + PENALTY_RHO * plan.j_safe
         best_raw, best = optimise_plans(model, batch, raw, steps)
         states.append(best.s0)
         targets.append(best_raw[:, 0].clamp(-Z_LIMIT, Z_LIMIT))
@@ -84,44 +66,6 @@ def label(model: IDCModel, policy: torch.nn.Module, samples: Samples, horizon: i
                "j_policy_median": float(jp.median()), "j_optimum_median": float(jb.median()),
                "optimum_better_share": float((jb < jp).double().mean())}
     return s0, z, figures
-
-
-def fit(policy: torch.nn.Module, states: Tensor, z: Tensor, steps: int, lr: float, batch_size: int,
-        generator: torch.Generator) -> float:
-    """Adam on the MSE between the policy's mean z and the labels; the last 50 steps' mean loss."""
-    optimiser = torch.optim.Adam(policy.parameters(), lr=lr)
-    policy.train()
-    losses = []
-    for _ in range(steps):
-        rows = torch.randint(len(states), (min(batch_size, len(states)),), generator=generator)
-        mean, _ = policy.distribution(states[rows])
-        loss = torch.nn.functional.mse_loss(mean, z[rows])
-        optimiser.zero_grad()
-        loss.backward()
-        optimiser.step()
-        losses.append(float(loss.detach()))
-    policy.eval()
-    return float(np.mean(losses[-50:]))
-
-
-def write(out: Path, source: Path, nets: Networks, config, notes: list[str], wall_s: float) -> None:
-    """The model file (checkpoint format, iteration 0) and its card, with the source's lineage."""
-    history = lineage({"init_from": str(source)})
-    out.parent.mkdir(parents=True, exist_ok=True)
-    model = {"format": FORMAT, "iteration": 0, "config": config.to_json(), "lineage": history,
-             "learner": {name: net.state_dict() for name, net in zip(("policy", "value", "adversary"), nets, strict=True)
-                         if net is not None}}
-    tmp = out.with_suffix(".tmp")
-    torch.save(model, tmp)
-    tmp.replace(out)
-    total = sum(int(h["iterations"]) for h in history)
-    card = {"algo": config.algo, "iterations_done": 0, "iterations_planned": 0, "iterations_total": total,
-            "paper_iterations": TOTAL_ITERATIONS, "fraction_of_paper": round(total / TOTAL_ITERATIONS, 4),
-            "changed_from_defaults": changed_from_defaults(config.to_json()), "notes": notes,
-            "wall_time_s": round(wall_s, 1),
-            "wall_time_total_s": round(wall_s + sum(float(h.get("wall_time_s") or 0.0) for h in history), 1),
-            "lineage": history, "hardware": hardware(config.device), "config": config.to_json()}
-    out.with_suffix(".card.json").write_text(json.dumps(card, indent=2) + "\n")
 
 
 def main() -> None:
@@ -157,16 +101,16 @@ def main() -> None:
         t2 = time.monotonic()
         all_states.append(s0)
         all_z.append(z)
-        loss = fit(nets.policy, torch.cat(all_states), torch.cat(all_z), args.fit_steps, args.lr, args.batch_size,
-                   generator)
+        loss = fit_mean(nets.policy, torch.cat(all_states), torch.cat(all_z), args.fit_steps, args.lr, args.batch_size,
+                        generator)
         line = (f"round {r}: {int(figures['states'])} states ({t1 - t0:.0f} s sampling, {t2 - t1:.0f} s labelling); "
                 f"policy vs label |Δ| steer {figures['steer_gap']:.3f} rad/s, jerk {figures['jerk_gap']:.2f} m/s³; "
                 f"J_π median policy {figures['j_policy_median']:.2f}, optimum {figures['j_optimum_median']:.2f} "
                 f"(optimum better in {100 * figures['optimum_better_share']:.0f} %); fit loss {loss:.4f}")
         print(line, flush=True)
         notes.append(line)
-        write(args.out, args.source, nets, config, [f"DAgger on the model's optimum from {args.source}"] + notes,
-              time.monotonic() - started)
+        write_refitted_model(args.out, config, nets, args.source,
+                             [f"DAgger on the model's optimum from {args.source}"] + notes, time.monotonic() - started)
     print(f"wrote {args.out} ({time.monotonic() - started:.0f} s)")
 
 

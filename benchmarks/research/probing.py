@@ -172,6 +172,21 @@ def optimise_plans(model: IDCModel, batch: StateBatch, raw: torch.Tensor, steps:
         return raw.detach(), model.rollout(batch, plan, None, HORIZON)
 
 
+def policy_plan(model: IDCModel, policy: torch.nn.Module, batch: StateBatch, horizon: int = HORIZON
+                ) -> tuple[torch.Tensor, Rollout]:
+    """The policy's own plan from each state of ``batch``: its ``horizon`` actions before tanh
+    (B, T, 2), as :func:`optimise_plans` starts from them, and its rollout (ξ ≡ 0)."""
+    actions: list[torch.Tensor] = []
+
+    def act(s: torch.Tensor, _: int) -> torch.Tensor:
+        actions.append(policy.mean_action(s))
+        return actions[-1]
+
+    with torch.no_grad():
+        out = model.rollout(batch, act, None, horizon)
+    return torch.atanh((torch.stack(actions, 1) / ACTION_SCALE.to(out.s0.dtype)).clamp(-0.999, 0.999)), out
+
+
 def open_loop_optimum(model: IDCModel, batch: StateBatch, steps: int = 250, lr: float = 0.05) -> Rollout:
     """The model's own best plan from each state (``optimise_plans`` from zero actions): its rollout."""
     zero = torch.zeros(batch.ego.shape[0], HORIZON, 2, dtype=batch.ego.dtype)
@@ -213,15 +228,7 @@ class ModelOptimumController(IdcController):
         batch = StateBatch(f(observation.ego), f(others), f(kappa), torch.tensor([best]),
                            torch.tensor([mode == "stop"]))
         if self._plan is None:
-            actions: list[torch.Tensor] = []
-
-            def policy_plan(s: torch.Tensor, _: int) -> torch.Tensor:
-                actions.append(self.policy.mean_action(s))
-                return actions[-1]
-
-            with torch.no_grad():
-                self._model.rollout(batch, policy_plan, None, HORIZON)
-            start = torch.atanh((torch.stack(actions, 1) / ACTION_SCALE).clamp(-0.999, 0.999))
+            start, _ = policy_plan(self._model, self.policy, batch)
             steps = self.first_steps
         else:
             start = torch.cat([self._plan[:, 1:], self._plan[:, -1:]], dim=1)

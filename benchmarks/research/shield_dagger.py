@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import copy
 import dataclasses
-import json
 import time
 from pathlib import Path
 
@@ -30,14 +29,15 @@ import torch
 from crossroads.constants import JERK_MAX, STEER_RATE_MAX
 from crossroads.idc.decision import IdcController
 from crossroads.idc.state import build_states, select_others
-from crossroads.rl.checkpoint import FORMAT, load_networks
-from crossroads.rl.export import changed_from_defaults, hardware, lineage
+from crossroads.rl.checkpoint import load_networks
+from crossroads.rl.export import write_refitted_model
 from crossroads.scenario.spec import load_scenario, run_seeds, to_world_config
 from crossroads.sim.world import World
 
+from imitation import Z_LIMIT, fit_mean
+
 REPO = Path(__file__).resolve().parents[2]
 SCALE = np.array([STEER_RATE_MAX, JERK_MAX])
-Z_LIMIT = 3.0  # labels before tanh are clipped here (tanh(3) = 0.995 of the range)
 
 
 def scenes(seeds: int, base_seed: int) -> list[tuple[Path, int]]:
@@ -76,44 +76,6 @@ def collect(expert: IdcController, student: IdcController, scene_list: list[tupl
     return np.array(states), np.array(labels), np.array(braked), outcomes
 
 
-def fit(policy: torch.nn.Module, states: np.ndarray, z: np.ndarray, weights: np.ndarray, steps: int, lr: float,
-        seed: int) -> float:
-    """Adam on the MSE between the policy's mean z and the labels, batches drawn in proportion to
-    ``weights``; the last 100 steps' mean loss."""
-    x, y = torch.as_tensor(states, dtype=torch.float32), torch.as_tensor(z, dtype=torch.float32)
-    w = torch.as_tensor(weights, dtype=torch.float64)
-    generator = torch.Generator().manual_seed(seed)
-    uniform = bool(np.all(weights == weights[0]))  # drawn as before weights existed: the same runs
-    optimiser = torch.optim.Adam(policy.parameters(), lr=lr)
-    policy.train()
-    losses = []
-    for _ in range(steps):
-        rows = (torch.randint(len(x), (min(256, len(x)),), generator=generator) if uniform
-                else torch.multinomial(w, min(256, len(x)), replacement=True, generator=generator))
-        mean, _ = policy.distribution(x[rows])
-        loss = torch.nn.functional.mse_loss(mean, y[rows])
-        optimiser.zero_grad()
-        loss.backward()
-        optimiser.step()
-        losses.append(float(loss.detach()))
-    policy.eval()
-    return float(np.mean(losses[-100:]))
-
-
-def write(out: Path, source: Path, nets, config, notes: list[str], wall_s: float) -> None:
-    """The model file (checkpoint format) and its card, with the source's lineage."""
-    history = lineage({"init_from": str(source)})
-    out.parent.mkdir(parents=True, exist_ok=True)
-    torch.save({"format": FORMAT, "iteration": 0, "config": config.to_json(), "lineage": history,
-                "learner": {n: net.state_dict() for n, net in zip(("policy", "value", "adversary"), nets, strict=True)
-                            if net is not None}}, out)
-    total = sum(int(h["iterations"]) for h in history)
-    out.with_suffix(".card.json").write_text(json.dumps({
-        "algo": config.algo, "iterations_done": 0, "iterations_total": total, "notes": notes,
-        "wall_time_s": round(wall_s, 1), "changed_from_defaults": changed_from_defaults(config.to_json()),
-        "lineage": history, "hardware": hardware(config.device), "config": config.to_json()}, indent=2) + "\n")
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("source", type=Path)
@@ -132,23 +94,26 @@ def main() -> None:
     expert = IdcController(nets.policy, nets.value, shield=True)
     student_policy = copy.deepcopy(nets.policy)
     student = IdcController(student_policy, nets.value)
-    all_states, all_z, all_w, notes = [], [], [], []
+    all_states, all_z, all_braked, notes = [], [], [], []
     for r in range(args.rounds):
         t0 = time.monotonic()
         states, z, braked, outcomes = collect(expert, student, scenes(args.seeds, args.base_seed + r), expert_drives=(r == 0))
         all_states.append(states)
         all_z.append(z)
-        all_w.append(np.where(braked, args.braking_weight, 1.0))
+        all_braked.append(braked)
         with torch.no_grad():
             before = float(((student_policy.distribution(torch.as_tensor(states, dtype=torch.float32))[0].numpy() - z) ** 2).mean())
-        loss = fit(student_policy, np.concatenate(all_states), np.concatenate(all_z), np.concatenate(all_w),
-                   args.fit_steps, args.lr, r)
+        weights = (None if args.braking_weight == 1.0  # uniform draws
+                   else torch.as_tensor(np.where(np.concatenate(all_braked), args.braking_weight, 1.0)))
+        loss = fit_mean(student_policy, torch.as_tensor(np.concatenate(all_states), dtype=torch.float32),
+                        torch.as_tensor(np.concatenate(all_z), dtype=torch.float32), args.fit_steps, args.lr, 256,
+                        torch.Generator().manual_seed(r), weights)
         line = (f"round {r}: {'expert' if r == 0 else 'student'} drove {sum(outcomes.values())} episodes {outcomes}; "
                 f"{len(states)} states ({int(braked.sum())} braked), label MSE before the fit {before:.3f}, fit loss {loss:.3f} ({time.monotonic() - t0:.0f} s)")
         print(line, flush=True)
         notes.append(line)
-        write(args.out, args.source, (student_policy, nets.value, nets.adversary), config,
-              [f"DAgger with {args.source}+shield as the expert"] + notes, time.monotonic() - started)
+        write_refitted_model(args.out, config, (student_policy, nets.value, nets.adversary), args.source,
+                             [f"DAgger with {args.source}+shield as the expert"] + notes, time.monotonic() - started)
     print(f"wrote {args.out}")
 
 

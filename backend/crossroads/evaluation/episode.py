@@ -10,7 +10,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-
 from crossroads.evaluation.sumo_driver import SumoDriverPolicy
 from crossroads.evaluation.near_miss import NearMissTracker
 from crossroads.evaluation.trace import TraceRecorder

@@ -62,7 +62,7 @@ class IdcController:
         self.preview = bool(getattr(policy, "preview", False))
         # the torch networks of crossroads.rl.neural_nets normalise their input (network_input)
         # themselves; when the two read it alike, a decision normalises its candidates once for both
-        self._shared_input = (hasattr(value, "value_of_input") and hasattr(policy, "distribution_of_input")
+        self._shared_input = (hasattr(value, "value_of_input") and hasattr(policy, "mean_action_of_input")
                               and getattr(policy, "low", None) is not None and policy.low.dtype == self._dtype
                               and (policy.preview, policy.lead) == (value.preview, value.lead))
 
@@ -83,15 +83,14 @@ class IdcController:
             batch = torch.from_numpy(np.ascontiguousarray(states)).to(self._dtype)
             # identical states get one value, the first's: a tie goes to the first path (below)
             same = torch.from_numpy(first_identical(states))
-            if self._shared_input:  # the same numbers as the branch below, one normalisation fewer
+            if self._shared_input:  # the same numbers as the networks' own calls, one normalisation fewer
                 x = network_input(batch, self.policy.preview, self.policy.lead)
-                values = self.value.value_of_input(x)[same].double().numpy()
-                best = least_value_path(values)
-                action = self.policy.squash(self.policy.distribution_of_input(x[best:best + 1])[0])[0]
+                value_of, action_of = self.value.value_of_input, self.policy.mean_action_of_input
             else:
-                values = self.value(batch)[same].double().numpy()
-                best = least_value_path(values)
-                action = self.policy.mean_action(batch[best:best + 1])[0]
+                x, value_of, action_of = batch, self.value, self.policy.mean_action
+            values = value_of(x)[same].double().numpy()
+            best = least_value_path(values)
+            action = action_of(x[best:best + 1])[0]
         return best, action.double().numpy(), values
 
     def decide(self, observation: Observation) -> Decision:

@@ -181,7 +181,7 @@ def braking_action(ego: np.ndarray, exit_heading: float | None = None) -> np.nda
     ``exit_heading``."""
     if _holds_wheel(float(ego[PHI]), exit_heading):
         return HOLD_WHEEL
-    return np.array(_braking_floats(float(ego[PHI]), float(ego[DELTA]), exit_heading))
+    return np.array([_straightening_rate(float(ego[DELTA])), -JERK_MAX])
 
 
 def _holds_wheel(phi: float, exit_heading: float | None) -> bool:
@@ -189,12 +189,15 @@ def _holds_wheel(phi: float, exit_heading: float | None) -> bool:
     return exit_heading is None or abs(wrap_scalar(phi - exit_heading)) >= EXIT_ALIGNED_RAD
 
 
+def _straightening_rate(delta: float) -> float:
+    """[rad/s] the steering rate that turns the wheel from ``delta`` back toward straight."""
+    return min(max(-delta / DT_S, -STEER_RATE_MAX), STEER_RATE_MAX)
+
+
 def _braking_floats(phi: float, delta: float, exit_heading: float | None) -> tuple[float, float]:
     """:func:`braking_action` of an ego at heading ``phi`` with wheel angle ``delta``, as two
     Python floats (it runs for every step of both backups)."""
-    if _holds_wheel(phi, exit_heading):
-        return 0.0, -JERK_MAX
-    return min(max(-delta / DT_S, -STEER_RATE_MAX), STEER_RATE_MAX), -JERK_MAX
+    return (0.0 if _holds_wheel(phi, exit_heading) else _straightening_rate(delta)), -JERK_MAX
 
 
 # [m] an obstacle counts as intruded deeper along one backup than the other only past this: below

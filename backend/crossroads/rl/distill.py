@@ -21,7 +21,6 @@ the adversary, whose layout does not change, is copied (widened if the new layou
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,11 +29,10 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from crossroads.constants import TOTAL_ITERATIONS
 from crossroads.rl.buffer import Samples, to_batch
-from crossroads.rl.checkpoint import FORMAT, load_networks
+from crossroads.rl.checkpoint import load_networks
 from crossroads.rl.config import TrainConfig, apply_overrides
-from crossroads.rl.export import changed_from_defaults, hardware, lineage
+from crossroads.rl.export import write_refitted_model
 from crossroads.rl.idc_model import IDCModel
 from crossroads.rl.neural_nets import Networks, networks_for, widen_first_layer
 from crossroads.rl.sampler import EpisodeSampler, PathSet, WorkerSpec, policy_weights
@@ -167,36 +165,7 @@ def distill(source_path: Path, out: Path, overrides: dict[str, Any], episodes: i
 
 
 def write_model(out: Path, config: TrainConfig, nets: Networks, source: Path, report: DistillReport) -> None:
-    """The model file (checkpoint format, iteration 0) and its card, which carries the source's
-    lineage so that runs from it count all the training behind the weights."""
-    history = lineage({"init_from": str(source)})
-    model = {
-        "format": FORMAT,
-        "iteration": 0,
-        "config": config.to_json(),
-        "lineage": history,
-        "learner": {name: net.state_dict() for name, net in zip(("policy", "value", "adversary"), nets, strict=True)
-                    if net is not None},
-    }
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_suffix(".tmp")
-    torch.save(model, tmp)
-    tmp.replace(out)
-    total = sum(int(h["iterations"]) for h in history)
-    card = {
-        "algo": config.algo,
-        "iterations_done": 0,
-        "iterations_planned": 0,
-        "iterations_total": total,
-        "paper_iterations": TOTAL_ITERATIONS,
-        "fraction_of_paper": round(total / TOTAL_ITERATIONS, 4),
-        "changed_from_defaults": changed_from_defaults(config.to_json()),
-        "notes": [f"distilled from {source}: " + "; ".join(report.lines())],
-        "wall_time_s": round(report.wall_time_s, 1),
-        "wall_time_total_s": round(report.wall_time_s + sum(float(h.get("wall_time_s") or 0.0) for h in history), 1),
-        "lineage": history,
-        "hardware": hardware(config.device),
-        "distillation": dataclasses.asdict(report),
-        "config": config.to_json(),
-    }
-    out.with_suffix(".card.json").write_text(json.dumps(card, indent=2) + "\n")
+    """The distilled model file and its card (:func:`~crossroads.rl.export.write_refitted_model`),
+    the card with the distillation's figures."""
+    write_refitted_model(out, config, nets, source, [f"distilled from {source}: " + "; ".join(report.lines())],
+                         report.wall_time_s, {"distillation": dataclasses.asdict(report)})

@@ -18,6 +18,7 @@ import csv
 import json
 import os
 import platform
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -165,3 +166,44 @@ def export_model(run: Path, out: Path, notes: tuple[str, ...] = ()) -> tuple[Pat
     card_path = out.with_suffix(".card.json")
     card_path.write_text(json.dumps(model_card(run_dir, checkpoint, run, notes, history), indent=2) + "\n")
     return out, card_path
+
+
+def write_refitted_model(out: Path, config: TrainConfig, nets: Sequence[torch.nn.Module | None], source: Path,
+                         notes: list[str], wall_time_s: float, extra: dict[str, Any] | None = None) -> None:
+    """A model fitted outside a training run from the model file ``source`` (distillation,
+    imitation): ``out`` in the checkpoint format at iteration 0, with the networks ``nets``
+    (policy, value, adversary or None), and its card beside it, which carries the source's lineage
+    so that runs from it count all the training behind the weights. ``extra`` goes into the card
+    before the config. The model file is written to a temporary name first: a half-written model
+    never lands."""
+    history = lineage({"init_from": str(source)})
+    model = {
+        "format": FORMAT,
+        "iteration": 0,
+        "config": config.to_json(),
+        "lineage": history,
+        "learner": {name: net.state_dict() for name, net in zip(("policy", "value", "adversary"), nets, strict=True)
+                    if net is not None},
+    }
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_suffix(".tmp")
+    torch.save(model, tmp)
+    tmp.replace(out)
+    total = sum(int(h["iterations"]) for h in history)
+    card = {
+        "algo": config.algo,
+        "iterations_done": 0,
+        "iterations_planned": 0,
+        "iterations_total": total,
+        "paper_iterations": TOTAL_ITERATIONS,
+        "fraction_of_paper": round(total / TOTAL_ITERATIONS, 4),
+        "changed_from_defaults": changed_from_defaults(config.to_json()),
+        "notes": notes,
+        "wall_time_s": round(wall_time_s, 1),
+        "wall_time_total_s": round(wall_time_s + sum(float(h.get("wall_time_s") or 0.0) for h in history), 1),
+        "lineage": history,
+        "hardware": hardware(config.device),
+        **(extra or {}),
+        "config": config.to_json(),
+    }
+    out.with_suffix(".card.json").write_text(json.dumps(card, indent=2) + "\n")

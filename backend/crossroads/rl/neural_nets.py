@@ -170,6 +170,11 @@ class SquashedGaussianPolicy(nn.Module):
         mean, _ = self.distribution(states)
         return self.squash(mean)
 
+    def mean_action_of_input(self, x: Tensor) -> Tensor:
+        """:meth:`mean_action` of states already through :func:`network_input` (this class's flat
+        output; the adversary's ``mean_action`` reshapes its own)."""
+        return self.squash(self.distribution_of_input(x)[0])
+
     def sample(self, states: Tensor, generator: torch.Generator | None = None) -> Tensor:
         """A reparameterised draw squash(mean + std·ε), ε ~ N(0, I): differentiable in θ."""
         mean, log_std = self.distribution(states)
