@@ -370,6 +370,49 @@ def test_the_nearest_segments_are_those_of_the_plain_search(candidates) -> None:
     assert S._nearest(st, math.nan, 0.0)[0] == _every_segment(st, math.nan, 0.0)[0]
 
 
+def test_a_standing_ego_is_answered_from_the_last_search(candidates) -> None:
+    """_nearest answers a point asked again (an ego standing still) from its last search: the same
+    numbers as the plain search, in lists of the caller's own; other stacks or points search again."""
+    st = S._stacked(tuple(candidates))
+    x, y = (float(v) for v in candidates[0].points[40] + [0.3, -0.2])
+    first = S._nearest(st, x, y)
+    again = S._nearest(st, x, y)
+    assert first == again == _every_segment(st, x, y)
+    again[0].append(99)  # a caller changing its lists changes no later answer
+    assert S._nearest(st, x, y) == first
+    other = S._stacked((candidates[2], candidates[0]))
+    assert S._nearest(other, x, y) == _every_segment(other, x, y)
+    assert S._nearest(st, x + 1e-9, y) == _every_segment(st, x + 1e-9, y)
+
+
+def test_the_common_stretch_of_the_candidates(candidates) -> None:
+    """The candidates of one approach share their segments up to the junction: _stacked counts
+    them (here 100 segments of the 3 left-turn paths), a lone path shares all its own, and paths
+    apart share none."""
+    st = S._stacked(tuple(candidates))
+    assert 0 < st.shared < st.ax.shape[1]
+    for c in candidates:  # the shared segments are the same floats in every path
+        np.testing.assert_array_equal(c.points[:st.shared], candidates[0].points[:st.shared])
+    assert not np.array_equal(candidates[1].points[st.shared + 1], candidates[0].points[st.shared + 1])
+    assert S._stacked((candidates[2],)).shared == S._stacked((candidates[2],)).ax.shape[1]
+    assert S._stacked((candidates[0], _shifted(candidates[0], 3.0))).shared == 0
+
+
+def test_kind_codes_fill_the_slots_as_the_names_do() -> None:
+    """The kinds given as codes (Perceived.kind_codes) fill the slots with the same rows, in the
+    same order, as their names: more participants of a kind than its slots, fewer, none, and ties
+    in distance (positions on a 1 m grid)."""
+    rng = np.random.default_rng(13)
+    for n in (0, 1, 3, 17, 40, 150):
+        for _ in range(25):
+            ego = np.array([*rng.integers(-5, 5, 2).astype(float), 5.0, 0.0, rng.uniform(-3, 3), 0.0, 0.0, 0.0])
+            obs = np.column_stack([rng.integers(-12, 12, (n, 2)).astype(float), rng.uniform(-3, 3, (n, 4))])
+            names = rng.choice(S.KINDS, n, p=[0.6, 0.25, 0.15]) if n else np.zeros(0, "<U10")
+            codes = np.array([S.KINDS.index(k) for k in names], dtype=np.int8)
+            assert S.selected_rows(ego, obs, codes).tolist() == S.selected_rows(ego, obs, names).tolist()
+            assert S.select_others(ego, obs, codes).tobytes() == S.select_others(ego, obs, names).tobytes()
+
+
 def _shifted(c, dy):
     """Candidate ``c`` moved by ``dy`` metres along y (a parallel path)."""
     return dataclasses.replace(c, points=c.points + np.array([0.0, dy]))
@@ -378,13 +421,13 @@ def _shifted(c, dy):
 def test_tracked_state_is_the_row_of_build_states(candidates) -> None:
     """tracked_state builds one state alone: the row of build_states' states it names, bit for bit,
     and for path=None the row np.hypot(Δx, Δy).argmin() picks, also where two candidates are at the
-    same distance (a copy of a path: the first) or nearly (between two parallel paths: numpy's hypot
-    decides)."""
+    same distance (a copy of a path: the first; the ego on the stretch the candidates share) or
+    nearly (between two parallel paths: numpy's hypot decides)."""
     rng = np.random.default_rng(12)
     twin = dataclasses.replace(candidates[1])  # the same points, another object
     parallel = (candidates[0], _shifted(candidates[0], 3.0))
     sets = [tuple(candidates), (candidates[1], twin, candidates[0]), parallel, (candidates[2],)]
-    checked = ties = 0
+    checked = ties = common = 0
     for cands in sets:
         pts = np.concatenate([c.points for c in cands])
         for k in range(40):
@@ -397,6 +440,9 @@ def test_tracked_state_is_the_row_of_build_states(candidates) -> None:
             obs = np.column_stack([rng.uniform(-40, 40, (n, 2)) + [x, y], rng.uniform(-3, 3, (n, 4))])
             kinds = rng.choice(["vehicle", "cyclist", "pedestrian", "tram"], n)
             others = S.select_others(ego, obs, kinds)
+            st = S._stacked(cands)
+            i, w, _ = S._nearest(st, x, y)
+            common += len(cands) > 1 and i[0] < st.shared and len(set(i)) == 1 and len(set(w)) == 1
             for mode in ("pass", "stop"):
                 for preview in (False, True):
                     states = S.build_states(ego, others, cands, mode, preview)
@@ -408,4 +454,4 @@ def test_tracked_state_is_the_row_of_build_states(candidates) -> None:
                         assert index == (nearest if path is None else path)
                         assert state.tobytes() == states[index].tobytes()
                         checked += 1
-    assert checked > 1000 and ties > 20
+    assert checked > 1000 and ties > 20 and common > 10  # common: every foot on the shared stretch

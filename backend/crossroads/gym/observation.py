@@ -104,10 +104,10 @@ def idc_view(obs: Observation, preview: bool, path: PathChoice, every: bool = Tr
         speed_mps=float(obs.ego[2]), yellow_remaining_s=obs.light.remaining_s)
     seen = obs.perceived
     if not every:
-        index, state = tracked_state(obs.ego, seen.observations, seen.kinds, obs.candidates, mode,
+        index, state = tracked_state(obs.ego, seen.observations, seen.slot_kinds(), obs.candidates, mode,
                                      None if path == "nearest" else int(path), preview)
         return IdcView(state, index, mode)
-    others = select_others(obs.ego, seen.observations, seen.kinds)
+    others = select_others(obs.ego, seen.observations, seen.slot_kinds())
     states = build_states(obs.ego, others, obs.candidates, mode, preview)
     index = int(np.hypot(states[:, DX], states[:, DY]).argmin()) if path == "nearest" else int(path)
     return IdcView(states[index], index, mode, states)

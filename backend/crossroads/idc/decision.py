@@ -100,7 +100,7 @@ class IdcController:
             others, kappa = observed_others(observation)
         else:
             others, kappa = select_others(observation.ego, observation.perceived.observations,
-                                          observation.perceived.kinds), None
+                                          observation.perceived.slot_kinds()), None
         states = build_states(observation.ego, others, self._candidates, mode, self.preview)
         best, action, values = self.decide_states(states)
         if kappa is None:

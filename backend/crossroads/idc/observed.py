@@ -19,7 +19,7 @@ def observed_others(obs: Observation) -> tuple[np.ndarray, np.ndarray]:
     for the 16 participants in the slots only, not for all ~100 perceived (it walks each one's lane:
     0.48 ms a step for all of them, about a third of what the shield added to a decision)."""
     seen = obs.perceived
-    slots = selected_rows(obs.ego, seen.observations, seen.kinds)
+    slots = selected_rows(obs.ego, seen.observations, seen.slot_kinds())
     others = others_in_slots(obs.ego, seen.observations, slots)
     taken = slots >= 0
     kappa = np.zeros(N_OTHERS)  # pads: κ 0

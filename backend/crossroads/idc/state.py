@@ -126,9 +126,11 @@ def select_others(
     """x_other as a (16, 6) block: the closest 8 vehicles, 4 cyclists, 4 pedestrians, padded.
 
     ``ego_xy`` is the ego's (x, y), or its whole state (8,) (then its heading places the pads);
-    ``observations`` (n, 6) world-frame rows ``[p_x, p_y, v, φ, L, W]``, ``kinds`` (n,). Within each
-    kind, rows are sorted by distance to the ego (closest first, ties keep the input order) and the
-    empty slots are filled with :func:`pad_participant`. Kinds other than the three are ignored.
+    ``observations`` (n, 6) world-frame rows ``[p_x, p_y, v, φ, L, W]``, ``kinds`` (n,): the kind
+    names, or their codes (integers: each kind's index in ``KINDS``, as ``Perceived.kind_codes``;
+    faster, the same slots). Within each kind, rows are sorted by distance to the ego (closest first,
+    ties keep the input order) and the empty slots are filled with :func:`pad_participant`. Names
+    other than the three are ignored; codes must be 0, 1 or 2.
     Which rows fill the slots: :func:`selected_rows`.
     """
     e = np.asarray(ego_xy, dtype=np.float64)
@@ -175,8 +177,21 @@ def _slot_rows(ego: FloatArray, obs: FloatArray, kinds: np.ndarray) -> list[int]
     # same order as a stable sort within each kind (ties keep the input order either way), with
     # fewer numpy calls (this runs every control step on ~100 rows)
     order = d2.argsort(kind="stable")
-    ordered_kinds = kinds[order]
     rows: list[int] = []
+    if kinds.dtype.kind in "iu":  # the kinds' codes: dealt out on Python ints, stopping when all are full
+        codes, groups, room = kinds.tolist(), ([], [], []), N_OTHERS
+        for row in order.tolist():
+            group = groups[codes[row]]
+            if len(group) < _SLOT_COUNTS[codes[row]]:
+                group.append(row)
+                room -= 1
+                if not room:
+                    break
+        for chosen, slots in zip(groups, _SLOT_COUNTS):
+            rows += chosen
+            rows += _PADS[slots - len(chosen)]
+        return rows
+    ordered_kinds = kinds[order]
     for kind, slots in zip(KINDS, _SLOT_COUNTS):
         chosen = order[ordered_kinds == kind][:slots].tolist()
         rows += chosen
@@ -427,6 +442,7 @@ class _Stacked(NamedTuple):
     row_starts: np.ndarray  # (C,) c·M: where candidate c's segments start in the flattened (C, M)
     scale: float  # [m] the largest |coordinate| of the paths' points, and more (the rounding's scale)
     segments: dict[str, list[list[float]]]  # mode → the rows of pack[mode] as Python floats (made when first asked)
+    shared: int  # the first segments every candidate has alike (start, vector, heading): their common stretch
 
 
 _CACHE: dict[tuple[int, ...], _Stacked] = {}
@@ -485,11 +501,18 @@ def _stacked_of(candidates: Sequence[CandidatePath]) -> _Stacked:
         np.where(len2 > 0, 1.0 / np.where(len2 > 0, len2, 1.0), 0.0), pack,
         np.stack([seg(a, True) for a in arcs]), np.stack([seg(a, False) for a in arcs]), ahead,
         np.arange(len(candidates)) * m, float(np.abs(pts).max() + np.abs(ab).max()), {},
+        _common_prefix(np.stack([pts[..., 0], pts[..., 1], ab[..., 0], ab[..., 1], h0, dh], axis=-1)),
     )
     if len(_CACHE) >= _CACHE_SIZE:
         _CACHE.pop(next(iter(_CACHE)))
     _CACHE[key] = stacked
     return stacked
+
+
+def _common_prefix(rows: FloatArray) -> int:
+    """How many leading rows of ``rows`` (C, M, k) are the same floats for every candidate."""
+    alike = (rows == rows[:1]).all(axis=(0, 2))
+    return int(alike.argmin()) if not alike.all() else len(alike)
 
 
 def _slack(st: _Stacked, x: float, y: float) -> float:
@@ -499,10 +522,27 @@ def _slack(st: _Stacked, x: float, y: float) -> float:
     return 1e-6 + 1e-9 * (abs(x) + abs(y) + st.scale)
 
 
+# (stacks, x, y, their _nearest) of the last search: an ego standing still asks again for the same
+# point every step (waiting at a light or in a queue: half the steps of a nominal left turn), and
+# the answer of a pure function of the same floats is the same
+_LAST_NEAREST: list[tuple[_Stacked, float, float, tuple[list[int], list[float], list[float]]] | None] = [None]
+
+
 def _nearest(st: _Stacked, x: float, y: float) -> tuple[list[int], list[float], list[float]]:
     """(i, w, d), one of each per candidate: its segment nearest to (x, y) (the first of equals),
     the position w ∈ [0, 1] of the foot of (x, y) along it and the squared distance from (x, y) to
-    that foot, as computed."""
+    that foot, as computed. Fresh lists every call (callers may keep them)."""
+    last = _LAST_NEAREST[0]
+    if last is not None and last[0] is st and last[1] == x and last[2] == y:
+        i, w, d = last[3]
+        return i[:], w[:], d[:]
+    found = _search_segments(st, x, y)
+    _LAST_NEAREST[0] = (st, x, y, (found[0][:], found[1][:], found[2][:]))
+    return found
+
+
+def _search_segments(st: _Stacked, x: float, y: float) -> tuple[list[int], list[float], list[float]]:
+    """:func:`_nearest`, computed: every segment of every candidate at once."""
     relx, rely = x - st.ax, y - st.ay
     t = (relx * st.abx + rely * st.aby) * st.inv_len2
     np.maximum(t, 0.0, out=t)
@@ -581,10 +621,17 @@ def tracked_state(
     st = _stacked(candidates)
     px, py, vx, _, phi = e[:PHI + 1].tolist()
     i, w, d = _nearest(st, px, py)
-    index = _certain_nearest(d, _slack(st, px, py)) if path is None else range(len(w))[path]
-    if index is None:  # a tie or a near one: numpy's hypot of every candidate's x_track decides
-        tracks = _tracks(st, i, w, mode, px, py, vx, phi)
-        index = int(np.hypot([t[0] for t in tracks], [t[1] for t in tracks]).argmin())
+    if path is not None:
+        index = range(len(w))[path]
+    elif i[0] < st.shared and i.count(i[0]) == len(i) and w.count(w[0]) == len(w):
+        # every foot at one place on the stretch the candidates share (the ego before the junction,
+        # where they split): the same Δx, Δy for all, so the first is the least (the argmin below)
+        index = 0
+    else:
+        index = _certain_nearest(d, _slack(st, px, py))
+        if index is None:  # a tie or a near one: numpy's hypot of every candidate's x_track decides
+            tracks = _tracks(st, i, w, mode, px, py, vx, phi)
+            index = int(np.hypot([t[0] for t in tracks], [t[1] for t in tracks]).argmin())
     segment = _segments(st, mode)[i[index] + index * st.ax.shape[1]]
     out = np.empty(PREVIEW_STATE_DIM if preview else STATE_DIM)
     out[EGO] = e

@@ -50,6 +50,12 @@ class Perceived:
     """The SUMO lane the map matching puts each of the given perceived participants on (indices
     into ``observations``; "" where none). Asked for a few participants only, in the same step:
     reading a lane costs a call into SUMO."""
+    kind_codes: NDArray[np.int8] | None = None  # (n,) each kind's index in PARTICIPANT_KINDS (None: not given)
+
+    def slot_kinds(self) -> np.ndarray:
+        """The kinds as :func:`~crossroads.idc.state.select_others` and its kin read them fastest:
+        the codes where the world gave them, else the names (the same slots either way)."""
+        return self.kinds if self.kind_codes is None else self.kind_codes
 
 
 @dataclass(frozen=True)

@@ -436,7 +436,8 @@ class World:
         observed = (add_noise_unchecked(truth, snap.kind_code[rows], self._noise_rng)
                     if self.config.perception_noise else truth)
         # the map matching: the lane each perceived participant is on (read from SUMO when asked)
-        return Perceived(rows, kinds, observed, lanes=lambda indices: snap.lane_id[rows[indices]])
+        return Perceived(rows, kinds, observed, lanes=lambda indices: snap.lane_id[rows[indices]],
+                         kind_codes=snap.kind_code[rows])
 
     def _observe(self, snap: Snapshot, around: _Around | None = None) -> Observation:
         if around is None:
