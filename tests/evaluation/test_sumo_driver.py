@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+from pathlib import Path
+
 import libsumo
 import pytest
 
@@ -11,6 +16,8 @@ from crossroads.intersections import catalogue
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC, TrafficDemand
 from crossroads.sim.world import EGO_ID, World
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -59,3 +66,37 @@ def test_step_refuses_a_mix_of_drivers(net) -> None:
         world.reset(1)
         with pytest.raises(ValueError, match="SUMO drives"):
             world.step(None)
+
+
+_ONE_EPISODE = """
+import dataclasses, json, sys
+from pathlib import Path
+from crossroads.evaluation.episode import run_episode
+from crossroads.evaluation.sumo_driver import SumoDriverPolicy
+from crossroads.scenario.spec import load_scenario, to_world_config
+from crossroads.sim.world import World
+path, seed, look_ahead = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3] == "on"
+driver = dataclasses.replace(SumoDriverPolicy().driver, look_ahead=look_ahead)
+with World(to_world_config(load_scenario(path), path.parent)) as world:
+    result = run_episode(world, SumoDriverPolicy(driver=driver), seed=seed)
+print(json.dumps([result.outcome, result.detail]))
+"""
+
+
+@pytest.mark.slow
+def test_sumo_driver_brakes_for_a_pedestrian_past_the_crossings_link() -> None:
+    """The nominal left turn of e_irregular_oblique, run 1311414304 (a seed of benchmarks/world_flow.py's
+    base seed): SUMO's driver, inside the junction past its crossing's link, drives into a pedestrian
+    walking in front of it without the look-ahead (sim/look_ahead.py); with it, it waits and passes.
+    Each episode runs first in a fresh process, as ``crossroads run`` does: SUMO's result can depend
+    on what the process ran before (a batch forks each episode for that reason). (A change of the
+    world's traffic may move the pedestrian: then find another such run with the benchmark,
+    ``--policy sumo --scenario scenarios/nominal/e_irregular_oblique-left.yaml``.)"""
+    path = REPO / "scenarios/nominal/e_irregular_oblique-left.yaml"
+    outcomes = {}
+    for mode in ("off", "on"):
+        done = subprocess.run([sys.executable, "-c", _ONE_EPISODE, str(path), "1311414304", mode],
+                              capture_output=True, text=True, timeout=300, check=True)
+        outcomes[mode] = json.loads(done.stdout.strip().splitlines()[-1])
+    assert outcomes["off"][0] == "collision" and outcomes["off"][1].startswith("hit pedestrian"), outcomes
+    assert outcomes["on"][0] == "passed", outcomes

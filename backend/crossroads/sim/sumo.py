@@ -79,6 +79,9 @@ class SumoDriver:
     # on the nominal left turn of c_three_lane, 4 of 30 runs timed out so (base seed 20261206);
     # with it 2 of those 4 passed in the next cycle. None: wait for every foe.
     ignore_foes_below_mps: float | None = 1.0
+    # brake for a pedestrian or cyclist in the way ahead, which SUMO's driver no longer sees once
+    # past a crossing's link (sim/look_ahead.py)
+    look_ahead: bool = True
 
 # SUMO speed-mode bits (sumo.dlr.de/docs/TraCI/Change_Vehicle_State.html#speed_mode_0xb3).
 SPEED_MODE_DEFAULT = 31  # all checks on

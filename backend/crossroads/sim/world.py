@@ -38,6 +38,7 @@ from crossroads.sim.courtesy import Courtesy, Movers
 from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
 from crossroads.sim.gridlock import GridlockBreaker
+from crossroads.sim.look_ahead import LookAhead
 from crossroads.sim.observation import GroundTruth, LightView, Observation, Perceived
 from crossroads.sim.outcome import Outcome
 from crossroads.sim.region import Region
@@ -87,6 +88,7 @@ ROUTE_MARGIN_S = 30.0  # [s] demand is drawn for warm-up + timeout + this margin
 _SAME_WAY_COS = math.cos(FRONT_HEADING_TOLERANCE_RAD)
 _PEDESTRIAN = KIND_CODE["pedestrian"]
 _CYCLIST = KIND_CODE["cyclist"]
+_VEHICLE = KIND_CODE["vehicle"]
 
 
 class _Around(NamedTuple):
@@ -212,6 +214,7 @@ class World:
         self._noise_rng = np.random.default_rng(noise_seq)
         self._gridlocks = GridlockBreaker(self.junction, cfg.gridlock_stand_s)
         self._courtesy = Courtesy(cfg.standing_ego_courtesy)
+        self._look_ahead = LookAhead(EGO_ID, sumo_driver is not None and sumo_driver.look_ahead)
         for _ in range(int(round(cfg.warmup_s / SIM_STEP_S))):
             self.session.step()
             self.abnormal.update(self.session)
@@ -346,8 +349,23 @@ class World:
         self.outcome = self._judge(snap, obs, previous_distance, around)
         if self.outcome is None and self._let_pedestrians_stop(snap):
             # a cyclist was taken out: observe again, so no one reads a participant SUMO no longer has
-            obs = self._observe(self.session.snapshot())
+            snap = self.session.snapshot()
+            obs = self._observe(snap)
+        if self.outcome is None and self._look_ahead.enabled:
+            self._look_ahead_for_sumo_driver(snap)
         return obs, self.outcome
+
+    def _look_ahead_for_sumo_driver(self, snap: Snapshot) -> None:
+        """SUMO's driver brakes for a pedestrian or cyclist in the ego's way (sim/look_ahead.py),
+        but not for one the courtesy holds (it waits for the ego)."""
+        rows = (snap.kind_code != _VEHICLE).nonzero()[0]
+        held = self._courtesy.held_pedestrians | set(self._courtesy.held_cyclists)
+        if held:
+            rows = np.array([r for r in rows.tolist() if str(snap.ids[r]) not in held], dtype=np.intp)
+        x, y, speed, _, heading = self.ego[:5].tolist()
+        self._look_ahead.update(self.session, (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M),
+                                snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows],
+                                0.5 * np.maximum(snap.length[rows], snap.width[rows]))
 
     def _let_pedestrians_stop(self, snap: Snapshot) -> bool:
         """Pedestrians and cyclists about to move into the standing ego stop (sim/courtesy.py);
