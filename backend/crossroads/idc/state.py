@@ -130,7 +130,7 @@ def select_others(
     names, or their codes (integers: each kind's index in ``KINDS``, as ``Perceived.kind_codes``;
     faster, the same slots). Within each kind, rows are sorted by distance to the ego (closest first,
     ties keep the input order) and the empty slots are filled with :func:`pad_participant`. Names
-    other than the three are ignored; codes must be 0, 1 or 2.
+    other than the three, and negative codes, are ignored.
     Which rows fill the slots: :func:`selected_rows`.
     """
     e = np.asarray(ego_xy, dtype=np.float64)
@@ -177,26 +177,29 @@ def _slot_rows(ego: FloatArray, obs: FloatArray, kinds: np.ndarray) -> list[int]
     # same order as a stable sort within each kind (ties keep the input order either way), with
     # fewer numpy calls (this runs every control step on ~100 rows)
     order = d2.argsort(kind="stable")
+    codes = (kinds if kinds.dtype.kind in "iu" else _kind_codes(kinds)).tolist()
+    groups: tuple[list[int], ...] = tuple([] for _ in KINDS)
+    room = N_OTHERS
+    for row in order.tolist():  # dealt out on Python ints, stopping when every slot is taken
+        code = codes[row]
+        if code >= 0 and len(groups[code]) < _SLOT_COUNTS[code]:
+            groups[code].append(row)
+            room -= 1
+            if not room:
+                break
     rows: list[int] = []
-    if kinds.dtype.kind in "iu":  # the kinds' codes: dealt out on Python ints, stopping when all are full
-        codes, groups, room = kinds.tolist(), ([], [], []), N_OTHERS
-        for row in order.tolist():
-            group = groups[codes[row]]
-            if len(group) < _SLOT_COUNTS[codes[row]]:
-                group.append(row)
-                room -= 1
-                if not room:
-                    break
-        for chosen, slots in zip(groups, _SLOT_COUNTS):
-            rows += chosen
-            rows += _PADS[slots - len(chosen)]
-        return rows
-    ordered_kinds = kinds[order]
-    for kind, slots in zip(KINDS, _SLOT_COUNTS):
-        chosen = order[ordered_kinds == kind][:slots].tolist()
+    for chosen, slots in zip(groups, _SLOT_COUNTS):
         rows += chosen
         rows += _PADS[slots - len(chosen)]
     return rows
+
+
+def _kind_codes(names: np.ndarray) -> NDArray[np.int8]:
+    """Each kind name's index in ``KINDS``; −1 for any other name."""
+    codes = np.full(len(names), -1, dtype=np.int8)
+    for code, kind in enumerate(KINDS):
+        codes[names == kind] = code
+    return codes
 
 
 def _fill_slots(block: FloatArray, obs: FloatArray, rows: list[int], x: float, y: float, heading: float) -> None:

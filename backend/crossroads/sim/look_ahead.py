@@ -18,7 +18,8 @@ again. A pedestrian or cyclist the world holds for the standing ego (``sim/court
 looked at: it waits for the ego to go, and the two would wait on each other — tried: counting them,
 SUMO's driver stood through whole cycles in front of a held pedestrian, and the nominal left turn
 of ``e_irregular_oblique`` passed 13 of 30 with 12 timeouts (without this rule 14, with 6 timeouts
-and 10 collisions; with it as it is, 15, 10 and 5). The ego's own controller policies never get
+and 10 collisions; with it as it is, three measurements: 14–15 passes, 4–5 collisions, 10–11
+timeouts). The ego's own controller policies never get
 this: it is part of the ``sumo`` baseline, not of the world. ``SumoDriver.look_ahead`` False turns
 it off.
 
