@@ -130,7 +130,7 @@ def select_others(
     names, or their codes (integers: each kind's index in ``KINDS``, as ``Perceived.kind_codes``;
     faster, the same slots). Within each kind, rows are sorted by distance to the ego (closest first,
     ties keep the input order) and the empty slots are filled with :func:`pad_participant`. Names
-    other than the three, and negative codes, are ignored.
+    other than the three, and the code −1, are ignored.
     Which rows fill the slots: :func:`selected_rows`.
     """
     e = np.asarray(ego_xy, dtype=np.float64)
@@ -178,11 +178,13 @@ def _slot_rows(ego: FloatArray, obs: FloatArray, kinds: np.ndarray) -> list[int]
     # fewer numpy calls (this runs every control step on ~100 rows)
     order = d2.argsort(kind="stable")
     codes = (kinds if kinds.dtype.kind in "iu" else _kind_codes(kinds)).tolist()
-    groups: tuple[list[int], ...] = tuple([] for _ in KINDS)
+    groups: tuple[list[int], ...] = ([], [], [], [])  # the three kinds', and (code −1) the ignored
+    left = list(_SLOT_COUNTS_AND_NONE)  # free slots of each
     room = N_OTHERS
     for row in order.tolist():  # dealt out on Python ints, stopping when every slot is taken
         code = codes[row]
-        if code >= 0 and len(groups[code]) < _SLOT_COUNTS[code]:
+        if left[code]:
+            left[code] -= 1
             groups[code].append(row)
             room -= 1
             if not room:
@@ -195,7 +197,7 @@ def _slot_rows(ego: FloatArray, obs: FloatArray, kinds: np.ndarray) -> list[int]
 
 
 def _kind_codes(names: np.ndarray) -> NDArray[np.int8]:
-    """Each kind name's index in ``KINDS``; −1 for any other name."""
+    """Each kind name's index in ``KINDS``; −1 (ignored) for any other name."""
     codes = np.full(len(names), -1, dtype=np.int8)
     for code, kind in enumerate(KINDS):
         codes[names == kind] = code
@@ -219,6 +221,7 @@ def _fill_slots(block: FloatArray, obs: FloatArray, rows: list[int], x: float, y
 
 _NO_ROWS = (-1,) * N_OTHERS  # every slot a pad
 _SLOT_COUNTS = tuple(SLOTS[kind] for kind in KINDS)  # slots of each kind, in slot order
+_SLOT_COUNTS_AND_NONE = (*_SLOT_COUNTS, 0)  # ... and none for an ignored kind (code −1, the last)
 _PADS = tuple([-1] * k for k in range(max(SLOTS.values()) + 1))  # −1 k times: the pads after k rows
 
 
