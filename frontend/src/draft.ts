@@ -52,6 +52,7 @@ const text = (v: unknown): string => (v == null ? "" : String(v));
 export function specToDraft(spec: Record<string, any>, source: string): Draft { // eslint-disable-line @typescript-eslint/no-explicit-any
   const over = spec.abnormal?.overspeed;
   const round = spec.abnormal?.rounding;
+  const injected = spec.abnormal?.injection;
   const draft: Draft = {
     name: text(spec.name), intersection: source, "intersection.junction": text(spec.intersection?.junction),
     task: text(spec.task), approach: text(spec.approach),
@@ -61,7 +62,7 @@ export function specToDraft(spec: Record<string, any>, source: string): Draft { 
     "traffic.vehicles_per_hour": text(spec.traffic?.vehicles_per_hour),
     "traffic.cyclists_per_hour": text(spec.traffic?.cyclists_per_hour),
     "traffic.pedestrians_per_hour": text(spec.traffic?.pedestrians_per_hour),
-    "overspeed.on": over != null, "rounding.on": round != null,
+    "overspeed.on": over != null, "rounding.on": round != null, "injection.on": injected != null,
     runs: text(spec.runs), seed: text(spec.seed), warmup_s: text(spec.warmup_s), timeout_s: text(spec.timeout_s),
   };
   if (over) {
@@ -69,5 +70,11 @@ export function specToDraft(spec: Record<string, any>, source: string): Draft { 
     draft["abnormal.overspeed.excess"] = text(Math.round(Number(over.excess) * 1e6) / 1e4); // percent
   }
   if (round) draft["abnormal.rounding.share"] = text(round.share);
+  if (injected) {
+    draft["abnormal.injection.count"] = text(injected.count);
+    draft["abnormal.injection.arrive_s"] = text(injected.arrive_s);
+    draft["abnormal.injection.excess"] = text(Math.round(Number(injected.excess) * 1e6) / 1e4); // percent
+    draft["abnormal.injection.headway_s"] = text(injected.headway_s);
+  }
   return draft;
 }

@@ -24,6 +24,12 @@ export function scenarioBody(): Json {
     abnormal.overspeed = { share: num("abnormal.overspeed.share"), excess: num("abnormal.overspeed.excess") / 100 };
   }
   if (checked("rounding.on")) abnormal.rounding = { share: num("abnormal.rounding.share") };
+  if (checked("injection.on")) {
+    abnormal.injection = {
+      count: intOrRaw("abnormal.injection.count"), arrive_s: num("abnormal.injection.arrive_s"),
+      excess: num("abnormal.injection.excess") / 100, headway_s: num("abnormal.injection.headway_s"),
+    };
+  }
   const ego: Json = {}; // an empty field is the format's default (its placeholder shows it)
   for (const key of ["entrance_lane", "start_distance_m", "start_speed_mps"]) {
     const v = field(`ego.${key}`).value;
@@ -96,7 +102,7 @@ function markField(root: ParentNode, loc: string, msg: string): boolean {
 
 /** Fields the page shows in percent while the API takes a fraction: their errors' numbers are
  *  said in percent too ("-50 %", not "-0.5"). */
-const PERCENT_FIELDS = new Set(["abnormal.overspeed.excess"]);
+const PERCENT_FIELDS = new Set(["abnormal.overspeed.excess", "abnormal.injection.excess"]);
 
 function inFieldUnits(loc: string, msg: string): string {
   if (!PERCENT_FIELDS.has(loc)) return msg;

@@ -1,7 +1,7 @@
 // Failure search: start a search of the saved scenario's neighbourhood for the policy's failures,
 // follow it (failures so far, best objective), and browse the failures it kept (parameters,
 // distance from nominal, 3D playback, the scenario file, "save as regression scenario").
-import { $, api, esc, Json, messageOf, post, sleep } from "./api";
+import { $, api, ApiError, esc, Json, messageOf, post, sleep } from "./api";
 import { duration } from "./batches";
 
 let current: number | null = null; // the search the panel follows
@@ -43,6 +43,21 @@ function spaceParameters(): Json[] {
     }
   });
   return out;
+}
+
+/** The space's seed field: a pool of that many seeds to search among, or none (0: a seed per episode). */
+function seedPool(): Json {
+  const pool = Number($<HTMLInputElement>("#search-seed-pool").value);
+  return pool > 0 ? { seed: { pool } } : {};
+}
+
+/** A refused search's problems, each with the field it names ("space.seed.pool: ..."). */
+function withFields(e: unknown): string {
+  if (!(e instanceof ApiError) || !Array.isArray(e.detail)) return messageOf(e);
+  return e.detail.map((d: Json) => {
+    const loc = (d.loc ?? []).filter((part: unknown) => part !== "body").join(".");
+    return loc ? `${loc}: ${d.msg}` : d.msg;
+  }).join("; ");
 }
 
 function status(text: string, error = false): void {
@@ -146,11 +161,11 @@ async function start(scenarioId: number | null, policy: string): Promise<void> {
     const s = await post("/api/searches", {
       policy, scenario_id: scenarioId, budget: Number($<HTMLInputElement>("#search-budget").value),
       sampler: $<HTMLSelectElement>("#search-sampler").value,
-      space: { version: 1, name: "studio", parameters: spaceParameters() },
+      space: { version: 1, name: "studio", parameters: spaceParameters(), ...seedPool() },
     });
     void follow(s.id);
   } catch (e) {
-    status(messageOf(e), true);
+    status(withFields(e), true);
     button.disabled = false;
   }
 }

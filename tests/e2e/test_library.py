@@ -27,9 +27,15 @@ def test_scenario_library(studio_url: str, browser: Any, artifacts: Path) -> Non
     page.fill("input[name='traffic.vehicles_per_hour']", "123")
     page.check("input[name='overspeed.on']")
     page.fill("input[name='abnormal.overspeed.excess']", "30")
+    page.check("input[name='injection.on']")
+    page.fill("input[name='abnormal.injection.count']", "2")
+    page.fill("input[name='abnormal.injection.arrive_s']", "6.5")
+    page.fill("input[name='abnormal.injection.excess']", "40")
     page.fill("input[name=runs]", "3")
     sid = _save(page)
     _row(page, "e2e-lib").wait_for()
+    assert page.request.get(f"{studio_url}/api/scenarios/{sid}").json()["spec"]["abnormal"]["injection"] == {
+        "count": 2, "arrive_s": 6.5, "excess": 0.4, "headway_s": 2.0}
 
     # the form elsewhere, then the stored scenario opened in it again
     _choose(page, "a_single_lane", "straight")
@@ -42,6 +48,10 @@ def test_scenario_library(studio_url: str, browser: Any, artifacts: Path) -> Non
     assert page.input_value("input[name='traffic.vehicles_per_hour']") == "123"
     assert page.is_checked("input[name='overspeed.on']")
     assert page.input_value("input[name='abnormal.overspeed.excess']") == "30"
+    assert page.is_checked("input[name='injection.on']")
+    assert (page.input_value("input[name='abnormal.injection.count']"),
+            page.input_value("input[name='abnormal.injection.arrive_s']"),
+            page.input_value("input[name='abnormal.injection.excess']")) == ("2", "6.5", "40")
     assert not page.locator("#run").is_disabled(), "the stored scenario, unedited: it can run"
     page.screenshot(path=str(artifacts / "20-library-opened.png"), full_page=True)
 

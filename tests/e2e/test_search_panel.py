@@ -48,6 +48,11 @@ def test_search_the_saved_scenario_and_keep_its_failure(studio_url: str, browser
     distance.fill("3")
     page.locator("[data-high='8']").fill("6")
     page.fill("#search-budget", "1")
+    page.fill("#search-seed-pool", "1")  # a choice of one seed: refused, naming the field
+    page.click("#search-start")
+    page.wait_for_function("document.querySelector('#search-status')?.textContent.includes('seed.pool')")
+    assert "search-status" in page.locator("#search-status.error").get_attribute("id")
+    page.fill("#search-seed-pool", "2")  # the search chooses the traffic too, among two seeds
     page.click("#search-start")
     page.wait_for_selector("#search-failures table", timeout=SEARCH_TIMEOUT_MS)
     page.wait_for_function("document.querySelector('#search-status')?.textContent.includes(' done:')",

@@ -21,9 +21,10 @@ from crossroads.sim.signals import apply_start, read_program
 from crossroads.sim.sumo import SumoSession
 from crossroads.sim.world import World
 
-SCENARIO = {  # a short warm-up and a light that starts mid-phase elsewhere in the cycle
+SCENARIO = {  # a short warm-up, a light that starts mid-phase elsewhere in the cycle, an over-speeder
     "version": 1, "name": "bundle-left", "intersection": "a_single_lane", "task": "left",
     "lights": {"phase": 4, "elapsed_s": 20.0}, "warmup_s": 20.0, "timeout_s": 10.0, "runs": 2, "seed": 3,
+    "abnormal": {"injection": {"arrive_s": 5.0, "excess": 0.3}},
 }
 SEED = 1705482282
 
@@ -48,6 +49,7 @@ def test_the_bundle_holds_the_inputs_the_world_gives_sumo(scenario: Path, tmp_pa
         used = _options(world.session.args)
         world_routes = Path(used["route-files"]).read_bytes()
     assert bundle.routes.read_bytes() == world_routes  # the same seeded demand, byte for byte
+    assert b'<trip id="inj0"' in world_routes and b'speedFactor="1.3000"' in world_routes
     config = ET.parse(bundle.config).getroot()
     written = {el.tag: el.get("value") for el in config.iter() if el.get("value") is not None}
     assert written["seed"] == used["seed"] == str(EpisodeSeeds.of(SEED).sumo)

@@ -108,3 +108,39 @@ def test_an_exact_phase_is_still_checked() -> None:
     assert problems[0][0] == "lights.phase"
     with pytest.raises(SpecError, match="give either ego"):
         left_turn("b_two_lane", lights={"phase": 0, "ego": "green"})
+
+
+def _one_exit_junction(directory: Path) -> Path:
+    """A junction C that the south, north and west legs only come into and the east leg only
+    leaves: from the south (a right turn), the approach opposite (the north's) can only turn left."""
+    import shutil
+    import subprocess
+    import sys
+
+    netconvert = Path(sys.executable).parent / "netconvert"
+    binary = str(netconvert) if netconvert.is_file() else shutil.which("netconvert")
+    if binary is None:
+        pytest.skip("netconvert is not installed")
+    (directory / "tee.nod.xml").write_text(
+        '<nodes><node id="C" x="0" y="0" type="traffic_light"/><node id="S" x="0" y="-100"/>'
+        '<node id="W" x="-100" y="0"/><node id="N" x="0" y="100"/><node id="E" x="100" y="0"/></nodes>')
+    (directory / "tee.edg.xml").write_text(
+        '<edges><edge id="SC" from="S" to="C" numLanes="1" speed="13.89"/>'
+        '<edge id="NC" from="N" to="C" numLanes="1" speed="13.89"/>'
+        '<edge id="WC" from="W" to="C" numLanes="1" speed="13.89"/>'
+        '<edge id="CE" from="C" to="E" numLanes="1" speed="13.89"/></edges>')
+    net = directory / "tee.net.xml"
+    subprocess.run([binary, "-n", str(directory / "tee.nod.xml"), "-e", str(directory / "tee.edg.xml"),
+                    "--no-turnarounds", "-o", str(net)], check=True, capture_output=True, timeout=60)
+    return net
+
+
+def test_an_injection_needs_a_straight_lane_on_the_opposite_approach(tmp_path: Path) -> None:
+    net = {"net": str(_one_exit_junction(tmp_path))}
+    right_turn = {"version": 1, "name": "one-exit", "intersection": net, "task": "right", "approach": "SC"}
+    assert network_problems(validate_scenario(right_turn, check_references=False)) == []
+    injected = validate_scenario({**right_turn, "abnormal": {"injection": {"arrive_s": 5.0}}},
+                                 check_references=False)
+    [(field, message)] = network_problems(injected)
+    assert field == "abnormal.injection" and "opposite 'SC' ('NC') has no lane going straight" in message
+    assert network_problems(left_turn("c_three_lane", abnormal={"injection": {"arrive_s": 5.0}})) == []

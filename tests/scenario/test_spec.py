@@ -15,6 +15,8 @@ from hypothesis import strategies as st
 
 from crossroads.scenario.spec import (
     ScenarioSpec,
+    abnormal_config,
+    canonical_json,
     content_hash,
     load_scenario,
     load_scenarios,
@@ -92,6 +94,15 @@ def test_overspeed_share_defaults_to_the_paper_share() -> None:
     assert spec.abnormal.overspeed is not None and spec.abnormal.overspeed.share == 0.15
 
 
+def test_an_injection_converts_and_a_count_of_zero_is_none() -> None:
+    spec = validate_scenario(with_({"abnormal": {"injection": {"arrive_s": 7.5, "excess": 0.5}}}))
+    injection = abnormal_config(spec).injection
+    assert injection is not None
+    assert (injection.count, injection.arrive_s, injection.excess, injection.headway_s) == (1, 7.5, 0.5, 2.0)
+    none = validate_scenario(with_({"abnormal": {"injection": {"arrive_s": 7.5, "count": 0}}}))
+    assert abnormal_config(none).injection is None
+
+
 def test_full_scenario_converts_field_by_field() -> None:
     spec = validate_scenario(FULL)
     cfg = to_world_config(spec)
@@ -156,6 +167,9 @@ def test_spec_is_frozen_and_hashable() -> None:
     ({"abnormal.overspeed": {"share": 0.1}}, "abnormal.overspeed.excess"),  # missing
     ({"abnormal.overspeed": {"excess": -0.1}}, "abnormal.overspeed.excess"),
     ({"abnormal.rounding": {"share": -0.1}}, "abnormal.rounding.share"),
+    ({"abnormal.injection": {"arrive_s": 5.0, "count": 6}}, "abnormal.injection.count"),
+    ({"abnormal.injection": {"count": 1}}, "abnormal.injection.arrive_s"),  # missing
+    ({"abnormal.injection": {"arrive_s": 5.0, "headway_s": 0.1}}, "abnormal.injection.headway_s"),
     ({"task": "uturn"}, "task"),                                    # unknown task
     ({"version": 2}, "version"),                                    # unknown version
     ({"version": "1"}, "version"),
@@ -243,8 +257,12 @@ def test_content_hash_is_canonical_and_sensitive() -> None:
     assert content_hash(validate_scenario(MINIMAL)) == content_hash(
         validate_scenario(with_({"runs": 200, "rho": None, "traffic.vehicles_per_hour": 400})))
     for change in ({"seed": 100}, {"runs": 11}, {"abnormal.rounding.share": 0.11}, {"rho": 0.51},
-                   {"ego.entrance_lane": "south_in_2"}, {"name": "other"}, {"approach": None}):
+                   {"ego.entrance_lane": "south_in_2"}, {"name": "other"}, {"approach": None},
+                   {"abnormal.injection": {"arrive_s": 4.0}}):
         assert content_hash(validate_scenario(with_(change, FULL))) != h, change
+    # a field added later, when none, leaves the identity of the scenarios stored before it as it was
+    assert content_hash(validate_scenario(with_({"abnormal.injection": None}, FULL))) == h
+    assert '"injection"' not in canonical_json(validate_scenario(FULL))
 
 
 def test_content_hash_is_pinned() -> None:

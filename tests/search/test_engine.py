@@ -15,6 +15,7 @@ import yaml
 
 from crossroads.search import records
 from crossroads.search.engine import SearchError, SearchRunner, summarize_search
+from crossroads.search.space import load_space, seed_pool
 from crossroads.store import open_store
 from support import REPO_ROOT
 
@@ -31,7 +32,8 @@ def crossroads(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
 
 def write_space(tmp_path: Path) -> Path:
     """Short episodes; every point is the ego 3–6 m before the line at 9–10 m/s on red (the cross
-    street's green): a red-light run whatever the driver, so the test does not hang on luck."""
+    street's green): a red-light run whatever the driver, so the test does not hang on luck. The
+    sampler chooses the seed too, among three."""
     scenario = yaml.safe_load(NOMINAL.read_text())
     scenario.update(warmup_s=5.0, timeout_s=15.0, runs=1)
     space = {
@@ -41,6 +43,7 @@ def write_space(tmp_path: Path) -> Path:
             {"path": "ego.start_distance_m", "low": 3.0, "high": 6.0},
             {"path": "ego.start_speed_mps", "low": 9.0, "high": 10.0},
         ],
+        "seed": {"low": 0, "high": 1000, "pool": 3},
     }
     path = tmp_path / "space.yaml"
     path.write_text(yaml.safe_dump(space))
@@ -61,6 +64,8 @@ def test_a_search_finds_shrinks_stores_and_replays_its_failures(tmp_path: Path) 
     assert summary["outcomes"] == {"red_light": 2} and summary["failing"] == 2
     assert summary["failures"] == summary["distinct_failures"] == 2
     assert 0 < summary["shrink_episodes"] <= 6
+    pool = seed_pool(load_space(space), 4)
+    assert pool is not None and {f["seed"] for f in summary["failure_list"]} <= set(pool)
     shrunk, kept = summary["failure_list"]
     # the start speed is not what makes it fail: shrinking took it back to nominal (8.33 m/s)
     assert "ego.start_speed_mps" not in shrunk["off_nominal"] and "lights.phase" in shrunk["off_nominal"]
@@ -111,11 +116,19 @@ def test_a_search_finds_shrinks_stores_and_replays_its_failures(tmp_path: Path) 
         with store.transaction() as session:
             row = next(t for t in records.trials(session=session, search_id=summary["search_id"])
                        if t.number == 0)
+            proposed_first, proposed_seed = dict(row.params), row.seed
+            assert proposed_seed in pool
             row.params = {**row.params, "ego.start_distance_m": 5.123456}
             row.outcome = None
         with pytest.raises(SearchError, match="trial 0 was stored with"):
             SearchRunner(store, summary["search_id"], workers=1, data_dir=tmp_path / "data").run()
         assert summarize_search(store, summary["search_id"])["status"] == "failed"
+        with store.transaction() as session:  # the same parameters, another seed than the pool's choice
+            row = next(t for t in records.trials(session=session, search_id=summary["search_id"])
+                       if t.number == 0)
+            row.params, row.seed = dict(proposed_first), row.seed + 1
+        with pytest.raises(SearchError, match=f"seed {proposed_seed + 1}, the sampler now proposes"):
+            SearchRunner(store, summary["search_id"], workers=1, data_dir=tmp_path / "data").run()
     finally:
         store.close()
 
@@ -163,7 +176,6 @@ def test_trials_on_the_pool_are_those_of_batch_workers_and_replay_with_crossroad
     per trial (1 at once): the same points, seeds and results, trial for trial. Then `crossroads
     evaluate` on every stored failure gives its trial's episode again, field for field."""
     from crossroads.search.engine import create_search_for
-    from crossroads.search.space import load_space
     from crossroads.store import crud
 
     space = load_space(write_mixed_space(tmp_path))

@@ -13,6 +13,7 @@ from crossroads.search.space import (
     load_space,
     network_problems_of,
     scenario_for,
+    seed_pool,
     validate_space,
 )
 from crossroads.validation import SpecError
@@ -68,6 +69,8 @@ def test_the_example_space_loads_and_its_network_agrees() -> None:
     ({"parameters": []}, "parameters", "at least 1"),
     ({"failures": ["timeout"]}, "failures.0", ""),
     ({"seed": {"low": 10, "high": 5}}, "seed.high", "at least low"),
+    ({"seed": {"low": 10, "high": 12, "pool": 4}}, "seed.pool", "holds only 3 seeds"),
+    ({"seed": {"pool": 1}}, "seed.pool", "greater than or equal to 2"),
     ({"scenario": "missing.yaml"}, "scenario", "not found"),
     ({"version": 2}, "version", ""),
 ])
@@ -112,6 +115,37 @@ def test_seeds_are_drawn_from_the_search_seed_within_the_range() -> None:
     assert seeds == [draw_seed(space, 5, n) for n in range(50)]
     assert all(100 <= s <= 110 for s in seeds) and len(set(seeds)) > 5
     assert seeds != [draw_seed(space, 6, n) for n in range(50)]
+
+
+def test_an_injection_moved_into_a_scenario_without_one_injects_what_the_space_proposes() -> None:
+    space = validate_space(space_data(parameters=[
+        {"path": "abnormal.injection.count", "low": 0, "high": 3},
+        {"path": "abnormal.injection.arrive_s", "low": 0.0, "high": 20.0},
+    ]))
+    assert space.nominal_values() == {"abnormal.injection.count": 0, "abnormal.injection.arrive_s": 0.0}
+
+    def injection(count: int, arrive_s: float) -> Any:
+        return scenario_for(space, {"abnormal.injection.count": count, "abnormal.injection.arrive_s": arrive_s},
+                            seed=1, name="t").abnormal.injection
+
+    assert injection(0, 0.0) is None  # nominal: no injection at all
+    assert (injection(2, 0.0).count, injection(2, 0.0).arrive_s) == (2, 0.0)
+    assert (injection(0, 5.0).count, injection(0, 5.0).arrive_s) == (0, 5.0)  # the count proposed, not 1
+    timing_only = validate_space(space_data(parameters=[
+        {"path": "abnormal.injection.arrive_s", "low": 0.0, "high": 20.0}]))
+    moved = scenario_for(timing_only, {"abnormal.injection.arrive_s": 5.0}, seed=1, name="t").abnormal.injection
+    assert moved is not None and (moved.count, moved.arrive_s, moved.excess) == (1, 5.0, 0.0)
+
+
+def test_a_pool_of_seeds_is_distinct_within_the_range_and_follows_the_search_seed() -> None:
+    assert seed_pool(validate_space(space_data()), 5) is None  # no pool: each episode draws its own
+    space = validate_space(space_data(seed={"low": 100, "high": 139, "pool": 16}))
+    pool = seed_pool(space, 5)
+    assert pool is not None and len(set(pool)) == 16 and pool == sorted(pool)
+    assert all(100 <= s <= 139 for s in pool)
+    assert seed_pool(space, 5) == pool and seed_pool(space, 6) != pool
+    whole = validate_space(space_data(seed={"low": 7, "high": 9, "pool": 3}))
+    assert seed_pool(whole, 1) == [7, 8, 9]  # a pool as large as the range is the range
 
 
 def test_the_network_rejects_a_phase_it_lacks_and_a_time_beyond_the_phase(tmp_path: Path) -> None:

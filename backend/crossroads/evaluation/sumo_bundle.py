@@ -6,8 +6,9 @@
 What the world (:class:`crossroads.sim.world.World`) gives SUMO for episode ``seed``, as files:
 
 * ``<name>.net.xml``: the network (the catalogue's build, or the scenario's net file);
-* ``<name>.rou.xml``: the traffic demand drawn from the episode's seed, byte for byte the route
-  file the world writes for it (same seed derivation, same duration);
+* ``<name>.rou.xml``: the traffic demand drawn from the episode's seed, as the world draws it (same
+  seed derivation, same duration), with the scenario's injected over-speeders (each a trip with
+  its own speed factor);
 * ``<name>.add.xml``: what the world sets through TraCI, as SUMO additionals: the §8 speed limits of
   the junction's lanes (variable speed signs from t = 0, :class:`~crossroads.sim.abnormal.AbnormalTraffic`),
   and the signal program unrolled over the episode so that the light jumps to the scenario's phase
@@ -38,11 +39,11 @@ import numpy as np
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, SIM_STEP_S
 from crossroads.geometry import project_onto_polyline
 from crossroads.scenario.spec import ScenarioSpec, to_world_config
-from crossroads.sim.abnormal import junction_lane_sets
+from crossroads.sim.abnormal import injected_departures, junction_lane_sets, with_departures
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.signals import TlProgram, phase_at
 from crossroads.sim.sumo import SumoSession
-from crossroads.sim.traffic import write_routes
+from crossroads.sim.traffic import build_plan, write_plan
 from crossroads.sim.world import EGO_ID, ROUTE_MARGIN_S, World
 
 EGO_VTYPE = "ego"
@@ -168,6 +169,7 @@ def export_bundle(spec: ScenarioSpec, seed: int, out_dir: Path, *, base_dir: str
         junction, program = world.junction, world.program
         phase_index, elapsed_s = world.start_phase  # the light at the ego's entry
         placement = world.placement  # where and on which route the ego enters
+        world_approach = world.approach
     finally:
         world.close()
 
@@ -179,8 +181,11 @@ def export_bundle(spec: ScenarioSpec, seed: int, out_dir: Path, *, base_dir: str
     shutil.copyfile(config.net_file, paths["net"])
     seeds = EpisodeSeeds.of(seed)
     end_s = config.warmup_s + config.timeout_s
-    write_routes(junction, config.demand, paths["routes"], seed=seeds.traffic,
-                 duration_s=config.warmup_s + config.timeout_s + ROUTE_MARGIN_S)
+    injected = injected_departures(junction, world_approach, config.abnormal.injection,
+                                   episode_start_s=config.warmup_s, limit_mps=config.abnormal.limit_outside_mps)
+    write_plan(with_departures(build_plan(junction, config.demand, seed=seeds.traffic,
+                                          duration_s=config.warmup_s + config.timeout_s + ROUTE_MARGIN_S),
+                               injected), paths["routes"])
     # SUMO as the world starts it: its command line, every lane (internal ones included), and the
     # lane the ego departs on
     depart_lane = f"{placement.route_edges[0]}_{placement.depart_lane}"

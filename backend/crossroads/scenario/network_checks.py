@@ -33,6 +33,7 @@ from crossroads.sim.signals import (
     read_all_programs,
     read_program,
 )
+from crossroads.sim.abnormal import injection_lane, opposite_approach
 from crossroads.sim.start import start_problem
 from crossroads.validation import SpecError
 
@@ -160,6 +161,16 @@ def _other_programs_hint(junction: Junction, program: TlProgram, link: int, ligh
     return f"; program(s) {', '.join(repr(pid) for pid in showing)} show it {light} (lights.program)"
 
 
+def _injection_problems(spec: ScenarioSpec, junction: Junction, approach: Approach) -> Problems:
+    """Injected over-speeders need a lane going straight on the opposite approach."""
+    injection = spec.abnormal.injection
+    if injection is None or injection.count == 0 or injection_lane(junction, approach) is not None:
+        return []
+    opposite = opposite_approach(junction, approach)
+    return [("abnormal.injection", f"the approach opposite {approach.id!r} ({opposite.id!r}) has no lane "
+                                   "going straight, where injected over-speeders would come from")]
+
+
 def network_problems(spec: ScenarioSpec, base_dir: str | Path | None = None) -> Problems:
     """Every field of ``spec`` its network contradicts, as ``(field, message)`` pairs; a
     ``{net: ...}`` path is taken relative to ``base_dir`` (see ``scenario.spec.net_path``)."""
@@ -168,7 +179,7 @@ def network_problems(spec: ScenarioSpec, base_dir: str | Path | None = None) -> 
         return problems
     approach, problems = _approach_of(spec, junction)
     if approach is not None:
-        problems = _ego_problems(spec, junction, approach)
+        problems = _ego_problems(spec, junction, approach) + _injection_problems(spec, junction, approach)
     return problems + _light_problems(spec, junction, approach)
 
 

@@ -46,7 +46,7 @@ from crossroads.constants import (
 )
 from crossroads.intersections import catalogue
 from crossroads.intersections.resolve import NET_SUFFIXES, NetworkNotFoundError, resolve_net
-from crossroads.sim.abnormal import AbnormalConfig
+from crossroads.sim.abnormal import INJECTED_HEADWAY_S, MAX_INJECTED, AbnormalConfig, Injection
 from crossroads.sim.config import (
     DEFAULT_GRIDLOCK_STAND_S,
     DEFAULT_START_DISTANCE_M,
@@ -236,6 +236,25 @@ class RoundingSpec(BaseModel):
     )
 
 
+class InjectionSpec(BaseModel):
+    """Over-speeders put on the opposite approach's innermost straight lane at a chosen time, so a
+    scenario (or a failure search) can time them against the ego's turn: the first is due at its
+    stop line ``arrive_s`` after the episode starts (at its own speed, if nothing holds it up),
+    each next one ``headway_s`` later. They come on top of the drawn traffic, which stays the same."""
+
+    model_config = _CONFIG
+
+    count: int = Field(default=1, ge=0, le=MAX_INJECTED, description="[-] How many (0: none).")
+    arrive_s: float = Field(
+        ge=0.0, le=3600.0,
+        description="[s] When the first is due at the opposite stop line, after the episode starts.")
+    excess: float = Field(
+        default=0.0, ge=0.0, le=1.0,
+        description="[-] Fraction by which they exceed the speed limit: 0.5 = +50 % (0: at the limit).")
+    headway_s: float = Field(
+        default=INJECTED_HEADWAY_S, ge=0.5, le=60.0, description="[s] Time between two of them.")
+
+
 class AbnormalSpec(BaseModel):
     """Abnormal behaviours of the surrounding traffic; absent = none (only the §8 speed limits)."""
 
@@ -243,6 +262,8 @@ class AbnormalSpec(BaseModel):
 
     overspeed: OverspeedSpec | None = Field(default=None, description="Over-speeding, or none.")
     rounding: RoundingSpec | None = Field(default=None, description="Lane-connection violations, or none.")
+    injection: InjectionSpec | None = Field(
+        default=None, description="Over-speeders timed against the ego, or none.")
 
 
 class ScenarioSpec(BaseModel):
@@ -403,10 +424,18 @@ def canonical_json(spec: ScenarioSpec) -> str:
     """Canonical JSON of a spec: every field (defaults filled in), sorted keys, no spaces.
 
     Two files that differ only in layout, key order, or in stating a default explicitly give the
-    same text. A ``{net: ...}`` path enters as written (not the file's content).
+    same text. A ``{net: ...}`` path enters as written (not the file's content). A field added
+    after scenarios were stored (:data:`_ADDED_LATER`) is left out while it is none, so that
+    those scenarios keep their identity.
     """
-    return json.dumps(spec.model_dump(mode="json"), sort_keys=True, separators=(",", ":"),
-                      ensure_ascii=False, allow_nan=False)
+    data = spec.model_dump(mode="json")
+    for group, name in _ADDED_LATER:
+        if data[group].get(name) is None:
+            del data[group][name]
+    return json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+
+
+_ADDED_LATER = (("abnormal", "injection"),)  # (group, field): left out of the identity while none
 
 
 def content_hash(spec: ScenarioSpec) -> str:
@@ -445,6 +474,9 @@ def abnormal_config(spec: ScenarioSpec) -> AbnormalConfig:
         overspeed_share=ab.overspeed.share if ab.overspeed else 0.0,
         overspeed_excess=ab.overspeed.excess if ab.overspeed else 0.0,
         rounding_share=ab.rounding.share if ab.rounding else 0.0,
+        injection=None if ab.injection is None or ab.injection.count == 0 else Injection(
+            count=ab.injection.count, arrive_s=ab.injection.arrive_s, excess=ab.injection.excess,
+            headway_s=ab.injection.headway_s),
     )
 
 

@@ -23,7 +23,9 @@ workers run it and however long each episode takes, and a resumed search propose
 uninterrupted one would: its stored trials are told again, not run again. There is no barrier
 between generations: trial n is proposed, and a free worker takes it, as soon as trials 0 … n − L
 are done, whatever the others of its "generation" are doing. The scenario seed of each trial is
-drawn from the search's seed, not proposed (:func:`~crossroads.search.space.draw_seed`).
+drawn from the search's seed (:func:`~crossroads.search.space.draw_seed`), or, where the space
+pools its seeds, proposed by the sampler as one more choice among the pool's
+(:func:`~crossroads.search.space.seed_pool`).
 
 **Shrinking.** Then every distinct failing trial is shrunk (:mod:`crossroads.search.shrink`), up
 to ``shrink_steps`` episodes each, those episodes stored as trials too (numbers from ``budget``
@@ -55,7 +57,7 @@ from crossroads.search.collection import write_failure
 from crossroads.search.objective import FAILURE_VALUE, objective
 from crossroads.search.pool import PoolExecutor, TrialPool
 from crossroads.search.shrink import Shrinker
-from crossroads.search.space import Space, draw_seed, scenario_for, validate_space
+from crossroads.search.space import SEED_KEY, Space, draw_seed, scenario_for, seed_pool, validate_space
 from crossroads.store import Store, crud
 from crossroads.store.search_tables import SearchTrial
 
@@ -127,10 +129,13 @@ def stored_space(space_json: Mapping[str, Any], search_id: int) -> Space:
     return validate_space(space_json, source=f"search {search_id}")
 
 
-def _distributions(space: Space) -> dict[str, Any]:
+def _distributions(space: Space, pool: list[int] | None) -> dict[str, Any]:
+    """Optuna's distribution of each parameter, and of the seed (``SEED_KEY``) when it is pooled."""
     from optuna.distributions import CategoricalDistribution, FloatDistribution, IntDistribution
 
     out: dict[str, Any] = {}
+    if pool is not None:
+        out[SEED_KEY] = CategoricalDistribution(pool)
     for p in space.parameters:
         if p.choices is not None:
             out[p.path] = CategoricalDistribution([p.cast(v) for v in p.choices])
@@ -449,7 +454,8 @@ class SearchRunner(BackgroundJob[dict[str, Any]]):
         import optuna
         from optuna.trial import TrialState
 
-        distributions = _distributions(self.space)
+        pool = seed_pool(self.space, self.seed)
+        distributions = _distributions(self.space, pool)
         study = optuna.create_study(direction="minimize", sampler=make_sampler(self.sampler, 0))
         lag = self.generation
         asked: dict[int, Any] = {}
@@ -461,17 +467,19 @@ class SearchRunner(BackgroundJob[dict[str, Any]]):
             study.sampler = make_sampler(self.sampler, trial_sampler_seed(self.seed, number), failing)
             trial = study.ask(distributions)
             params = {p.path: p.cast(trial.params[p.path]) for p in self.space.parameters}
+            seed = (draw_seed(self.space, self.seed, number) if pool is None
+                    else int(trial.params[SEED_KEY]))
             row = self._stored.get(number)
-            if row is not None and not _same_params(row.params, params):
+            if row is not None and (row.seed != seed or not _same_params(row.params, params)):
                 raise SearchError(
-                    f"search {self.search_id}: trial {number} was stored with {row.params}, "
-                    f"the sampler now proposes {params} (another optuna or Crossroads version?); "
-                    "start a new search")
+                    f"search {self.search_id}: trial {number} was stored with {row.params}, seed "
+                    f"{row.seed}, the sampler now proposes {params}, seed {seed} (another optuna or "
+                    "Crossroads version?); start a new search")
             asked[number] = trial
             if row is not None and row.outcome is not None:  # resumed: told again, not run
                 finished[number] = row.objective
             else:
-                to_run.append((number, "search", None, params, draw_seed(self.space, self.seed, number)))
+                to_run.append((number, "search", None, params, seed))
 
         for number in range(min(lag, self.budget)):
             ask(number)

@@ -9,12 +9,16 @@ A space file (YAML, see ``scenarios/search/`` and ``docs/guide/failure-search.md
     parameters:                                    # in this order they are shrunk
       - {path: traffic.vehicles_per_hour, low: 200, high: 800}
       - {path: lights.phase, choices: [0, 1, 2, 3]}
-    seed: {low: 0, high: 1000000}                  # each episode's scenario seed, drawn
+    seed: {low: 0, high: 1000000, pool: 16}        # the episodes' scenario seeds
 
 A parameter is a dotted path into the scenario (:data:`PARAMETERS` lists those a search may
-move) with a range ``low``..``high`` or a list of ``choices``. The seed is not optimised: neighbouring
-seeds share nothing, so each episode draws its own from ``seed`` (uniformly, from the search's
-seed). :func:`scenario_for` makes the scenario of one point of the space: the nominal one with
+move) with a range ``low``..``high`` or a list of ``choices``. The scenario seed (the traffic's
+draw) is searched in one of two ways. Without ``pool``, each episode draws its own seed from
+``seed`` (uniformly, from the search's seed: :func:`draw_seed`): neighbouring seeds share nothing,
+so there is nothing to learn about them. With ``pool: K``, the search first draws K distinct seeds
+from the range (:func:`seed_pool`) and the sampler chooses among them like any other choice, so it
+can learn which traffic makes the policy fail and come back to it with other lights, starts and
+behaviours. :func:`scenario_for` makes the scenario of one point of the space: the nominal one with
 those values, ``runs: 1`` and that seed, so that ``crossroads evaluate`` on it runs that episode.
 """
 
@@ -27,6 +31,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from crossroads.sim.abnormal import INJECTED_HEADWAY_S
 from crossroads.scenario.spec import (
     MAX_SEED,
     ScenarioSpec,
@@ -39,6 +44,9 @@ from crossroads.validation import FieldProblem, SpecError, load_yaml, validate_m
 SPACE_VERSION = 1
 FAILURE_OUTCOMES = ("collision", "red_light", "off_road")
 SEED_STREAM = 1  # spawn key of the trials' scenario seeds (the engine's samplers use 0)
+SEED_POOL_STREAM = 2  # spawn key of a space's pool of seeds
+MAX_SEED_POOL = 10_000  # seeds a pool may hold (a choice among more teaches the sampler nothing)
+SEED_KEY = "seed"  # the sampler's name for the pooled seed (not a scenario field: no dot)
 
 # The scenario fields a search may move: path → (type, its value when the scenario leaves it or
 # its group out, and the value that leaves it out). Abnormal behaviours absent from the nominal
@@ -55,7 +63,19 @@ PARAMETERS: dict[str, tuple[type, float | None]] = {
     "abnormal.overspeed.share": (float, 0.0),
     "abnormal.overspeed.excess": (float, 0.0),
     "abnormal.rounding.share": (float, 0.0),
+    "abnormal.injection.count": (int, 0),
+    "abnormal.injection.arrive_s": (float, 0.0),
+    "abnormal.injection.excess": (float, 0.0),
+    "abnormal.injection.headway_s": (float, INJECTED_HEADWAY_S),
     "warmup_s": (float, None),
+}
+# What a group the nominal scenario leaves out holds when a search moves one of its fields: the
+# values that leave the behaviour out, except that an injection moved into a scenario without one
+# injects one vehicle (its count, when the space moves it too, is then set to the proposed value).
+_NEW_GROUPS: dict[str, dict[str, float | int]] = {
+    "overspeed": {"share": 0.0, "excess": 0.0},
+    "rounding": {"share": 0.0},
+    "injection": {"count": 1, "arrive_s": 0.0, "excess": 0.0, "headway_s": INJECTED_HEADWAY_S},
 }
 
 _CONFIG = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
@@ -121,11 +141,18 @@ class SeedRange(BaseModel):
 
     low: int = Field(default=0, ge=0, le=MAX_SEED, description="Smallest scenario seed.")
     high: int = Field(default=1_000_000, ge=0, le=MAX_SEED, description="Largest scenario seed.")
+    pool: int | None = Field(
+        default=None, ge=2, le=MAX_SEED_POOL,
+        description="Search the seed too: the sampler chooses among this many distinct seeds drawn "
+                    "from the range (from the search's seed). Left out, every episode draws its own.")
 
     @model_validator(mode="after")
     def _ordered(self) -> SeedRange:
         if self.high < self.low:
             raise FieldProblem("high", f"must be at least low ({self.low})")
+        if self.pool is not None and self.pool > self.high - self.low + 1:
+            raise FieldProblem("pool", f"the range {self.low}..{self.high} holds only "
+                                       f"{self.high - self.low + 1} seeds")
         return self
 
 
@@ -219,10 +246,18 @@ def _set(data: dict[str, Any], path: str, value: Any) -> None:
     node = data
     for part in parts[:-1]:
         if node.get(part) is None:
-            node[part] = {"share": 0.0, "excess": 0.0} if part == "overspeed" else (
-                {"share": 0.0} if part == "rounding" else {})
+            node[part] = dict(_NEW_GROUPS.get(part, {}))
         node = node[part]
     node[parts[-1]] = value
+
+
+def _has_group(data: Mapping[str, Any], path: str) -> bool:
+    node: Any = data
+    for part in path.split(".")[:-1]:
+        node = node.get(part) if isinstance(node, Mapping) else None
+        if node is None:
+            return False
+    return True
 
 
 def scenario_for(space: Space, params: Mapping[str, float], *, seed: int, name: str,
@@ -233,10 +268,13 @@ def scenario_for(space: Space, params: Mapping[str, float], *, seed: int, name: 
     """
     data = space.nominal.model_dump(mode="json")
     nominal = space.nominal_values()
-    for p in space.parameters:
-        value = p.cast(params.get(p.path, nominal[p.path]))
-        if value != _get(data, p.path):  # only what moved: an absent group stays absent at nominal
-            _set(data, p.path, value)
+    values = {p.path: p.cast(params.get(p.path, nominal[p.path])) for p in space.parameters}
+    for path, value in values.items():
+        if value != _get(data, path):  # only what moved: an absent group stays absent at nominal
+            _set(data, path, value)
+    for path, value in values.items():  # a group made above holds every value of the space's
+        if _has_group(data, path):
+            _set(data, path, value)
     data.update(name=name, runs=1, seed=int(seed), description=description or data["description"])
     try:
         return validate_scenario(data, source=f"search space {space.space.name!r}",
@@ -333,3 +371,16 @@ def draw_seed(space: Space, search_seed: int, number: int) -> int:
     rng = np.random.default_rng(np.random.SeedSequence(search_seed, spawn_key=(SEED_STREAM, number)))
     low, high = space.space.seed.low, space.space.seed.high
     return int(rng.integers(low, high, endpoint=True))
+
+
+def seed_pool(space: Space, search_seed: int) -> list[int] | None:
+    """The distinct scenario seeds a search chooses among (``seed.pool`` of them, drawn from the
+    range and the search's seed, in ascending order), or None when each episode draws its own."""
+    import numpy as np
+
+    seeds = space.space.seed
+    if seeds.pool is None:
+        return None
+    rng = np.random.default_rng(np.random.SeedSequence(search_seed, spawn_key=(SEED_POOL_STREAM,)))
+    picked = rng.choice(seeds.high - seeds.low + 1, size=seeds.pool, replace=False)
+    return sorted(int(seeds.low + k) for k in picked)

@@ -10,6 +10,12 @@
   with ρ = ROUNDING_RHO, near the chord) into the innermost lane of their exit edge, then SUMO
   drives them on from there. Their progress along the curve is the speed SUMO's own driver would
   choose, so they still yield and queue as before.
+* Injection (a Crossroads addition, for timed tests and the failure search): ``count`` extra
+  vehicles on the innermost straight lane of the opposite approach, each with its speed factor
+  ``1 + excess`` from its insertion, departing so that the first is due at its stop line
+  ``arrive_s`` after the episode starts (its lane's length at its own speed) and each next one
+  ``headway_s`` later. They are added to the drawn demand (:func:`injected_departures`), which
+  stays the same, and count as over-speeders in the traces.
 
 Which vehicles are chosen is drawn from a seeded numpy Generator, one draw per candidate in
 departure order, so a scenario seed gives the same abnormal vehicles every run.
@@ -33,11 +39,31 @@ from crossroads.geometry import (
     bezier_control_points_closed_form,
     sample_cubic_bezier,
 )
-from crossroads.network.road import Approach, Junction
+from crossroads.network.road import Approach, Junction, Lane
 from crossroads.sim.sumo import SumoSession
+from crossroads.sim.traffic import DemandPlan, Departure
 
 ROUNDING_RHO = 0.9  # [-] (choice) ρ of the rounding curve: close to the chord, it cuts the corner
 ROUNDING_SAMPLE_M = 0.1  # [m] spacing of the sampled rounding curve
+MAX_INJECTED = 5  # injected over-speeders a scenario may ask for
+INJECTED_HEADWAY_S = 2.0  # [s] default time between two injected over-speeders
+INJECTED_PREFIX = "inj"  # their vehicle ids: inj0, inj1, ... (the drawn demand's are veh0, ...)
+
+
+@dataclass(frozen=True)
+class Injection:
+    """Over-speeders timed against the ego (see the module's docstring)."""
+
+    count: int = 1
+    arrive_s: float = 0.0  # [s] the first is due at the opposite stop line this long after the start
+    excess: float = 0.0  # by how much they exceed the limit (0.5 = +50 %)
+    headway_s: float = INJECTED_HEADWAY_S  # [s] between two of them
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.count <= MAX_INJECTED:
+            raise ValueError(f"Injection.count must be in [0, {MAX_INJECTED}]")
+        if not (self.arrive_s >= 0.0 and self.excess >= 0.0 and self.headway_s > 0.0):
+            raise ValueError("Injection.arrive_s and excess must be >= 0, headway_s > 0")
 
 
 @dataclass(frozen=True)
@@ -47,6 +73,7 @@ class AbnormalConfig:
     overspeed_share: float = 0.0  # share of the opposite straight vehicles that over-speed
     overspeed_excess: float = 0.0  # by how much they exceed the limit (0.1 = +10 %)
     rounding_share: float = 0.0  # share of the candidate left-turners that cut into the inside lane
+    injection: Injection | None = None  # over-speeders timed against the ego, or none
     limit_inside_mps: float = SURROUNDING_LIMIT_INSIDE_MPS  # [m/s]
     limit_outside_mps: float = SURROUNDING_LIMIT_OUTSIDE_MPS  # [m/s]
     apply_limits: bool = True  # set the §8 speed limits on the junction's lanes
@@ -81,6 +108,44 @@ def left_approach(junction: Junction, ego: Approach) -> Approach:
     """The approach coming from the ego's left (its traffic heads along the ego's heading − π/2)."""
     others = [a for a in junction.approaches if a is not ego]
     return max(others, key=lambda a: math.cos(a.heading_rad - (ego.heading_rad - math.pi / 2)))
+
+
+def injection_lane(junction: Junction, ego: Approach) -> Lane | None:
+    """Where injected over-speeders come from: the innermost entrance lane of the opposite
+    approach that goes straight (None when none does)."""
+    opp = opposite_approach(junction, ego)
+    straight = {c.from_lane for c in opp.connections_for("straight")}
+    lanes = [ln for ln in opp.entrance_lanes if ln.id in straight]
+    return max(lanes, key=lambda ln: ln.index) if lanes else None
+
+
+def injected_departures(junction: Junction, ego: Approach, injection: Injection | None, *,
+                        episode_start_s: float, limit_mps: float) -> tuple[Departure, ...]:
+    """The injected over-speeders' departures (pure): on the innermost lane of the opposite
+    approach that goes straight, from the start of its edge, timed so that the first reaches the
+    stop line ``injection.arrive_s`` after ``episode_start_s`` at ``limit_mps × (1 + excess)``
+    (none departs before 0: one due earlier than its lane allows comes late)."""
+    lane = injection_lane(junction, ego)
+    if injection is None or injection.count == 0 or lane is None:
+        return ()
+    opp = opposite_approach(junction, ego)
+    exit_lane = next(c.to_lane for c in opp.connections_for("straight") if c.from_lane == lane.id)
+    factor = 1.0 + injection.excess
+    lead_s = lane.length_m / (limit_mps * factor)
+    return tuple(
+        Departure(f"{INJECTED_PREFIX}{k}", "vehicle",
+                  round(max(0.0, episode_start_s + injection.arrive_s + k * injection.headway_s - lead_s), 2),
+                  opp.incoming_edge, _edge_of(exit_lane), depart_lane=lane.index, turn="straight",
+                  speed_factor=factor)
+        for k in range(injection.count))
+
+
+def with_departures(plan: DemandPlan, extra: tuple[Departure, ...]) -> DemandPlan:
+    """``plan`` with ``extra`` departures merged in time order (SUMO reads a route file in order)."""
+    if not extra:
+        return plan
+    merged = sorted((*plan.departures, *extra), key=lambda d: d.depart_s)  # stable: ties keep order
+    return DemandPlan(tuple(merged), plan.notes)
 
 
 def junction_lane_sets(junction: Junction, lane_ids: tuple[str, ...]) -> tuple[set[str], set[str]]:
@@ -167,11 +232,15 @@ class AbnormalTraffic:
         cfg = self.config
         if not session.departed_last_step:
             return  # most steps: nobody new (the sets below cost more than the rest of the step here)
+        if cfg.injection is not None:  # their speed factor came with them: only name them
+            for vid in session.departed_last_step:
+                if vid.startswith(INJECTED_PREFIX):
+                    self.kinds[vid] = "overspeed"
         if not (cfg.overspeed_share > 0.0 or cfg.rounding_share > 0.0):
             return  # nominal traffic: nobody can be chosen (no draw either), skip SUMO's look-ups
         persons = set(session.person_ids)
         for vid in session.departed_last_step:
-            if vid in self._seen or vid in persons:
+            if vid in self._seen or vid in persons or vid.startswith(INJECTED_PREFIX):
                 continue
             self._seen.add(vid)
             if session.vehicle_class(vid) != "passenger":

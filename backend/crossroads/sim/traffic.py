@@ -130,6 +130,7 @@ class Departure:
     turn: str | None = None  # vehicles and cyclists: "left" | "straight" | "right"
     depart_pos_m: float | None = None  # pedestrians: position on the from-edge [m]
     arrival_pos_m: float | None = None  # pedestrians: position on the to-edge [m]
+    speed_factor: float | None = None  # vehicles: their own instead of their type's (injected ones)
 
 
 @dataclass(frozen=True)
@@ -383,9 +384,10 @@ def _xml_of(d: Departure) -> str:
                 f'        <walk from={quoteattr(d.from_edge)} to={quoteattr(d.to_edge)} '
                 f'arrivalPos="{d.arrival_pos_m:.2f}"/>\n    </person>\n')
     vtype = CAR_TYPE if d.kind == "vehicle" else BIKE_TYPE
+    factor = "" if d.speed_factor is None else f' speedFactor="{d.speed_factor:.4f}"'
     return (f'    <trip id={quoteattr(d.id)} type="{vtype}" depart="{d.depart_s:.2f}" '
             f'from={quoteattr(d.from_edge)} to={quoteattr(d.to_edge)} '
-            f'departLane="{d.depart_lane}" departSpeed="max" departPos="base"/>\n')
+            f'departLane="{d.depart_lane}" departSpeed="max" departPos="base"{factor}/>\n')
 
 
 def write_plan(plan: DemandPlan, path: str | Path) -> Path:

@@ -31,7 +31,7 @@ from crossroads.network.road import Approach, Junction, Lane
 from crossroads.perception.noise import add_noise_unchecked
 from crossroads.perception.sensors import DEFAULT_SENSORS, covered
 from crossroads.planning import CandidatePath, plan_candidates
-from crossroads.sim.abnormal import AbnormalTraffic
+from crossroads.sim.abnormal import AbnormalTraffic, injected_departures, with_departures
 from crossroads.sim.blocking import BlockedBy, held_whole_episode, nearest_barrier
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.courtesy import Courtesy, Movers
@@ -201,9 +201,11 @@ class World:
         self.sumo_driver = sumo_driver
         self.events = []
         traffic_seq, sumo_seq, abnormal_seq, noise_seq = np.random.SeedSequence(seed).spawn(4)
-        self.demand_plan = self._without_start_zone_departures(build_plan(
+        self.demand_plan = self._without_start_zone_departures(with_departures(build_plan(
             self.junction, cfg.demand, seed=int(traffic_seq.generate_state(1)[0]),
-            duration_s=cfg.warmup_s + cfg.timeout_s + ROUTE_MARGIN_S))
+            duration_s=cfg.warmup_s + cfg.timeout_s + ROUTE_MARGIN_S), injected_departures(
+                self.junction, self.approach, cfg.abnormal.injection, episode_start_s=cfg.warmup_s,
+                limit_mps=cfg.abnormal.limit_outside_mps)))
         routes = write_plan(self.demand_plan, self._work_dir / "traffic.rou.xml")
         self.session.close()
         self.session.start(cfg.net_file, [routes], seed=int(sumo_seq.generate_state(1)[0] % 2**31),
