@@ -12,7 +12,7 @@ from crossroads.intersections.catalogue import list_intersections
 from crossroads.sim.config import WorldConfig
 from support import REPO_ROOT
 
-SCENARIO_DIRS = ("nominal", "paper")
+SCENARIO_DIRS = ("nominal", "paper", "regression")
 FILES = sorted(p for d in SCENARIO_DIRS for p in (REPO_ROOT / "scenarios" / d).glob("*.yaml"))
 
 
