@@ -6,8 +6,9 @@ import { duration } from "./batches";
 
 let current: number | null = null; // the search the panel follows
 
-/** The parameters the panel offers, each with the range the form starts with. */
-const PARAMETERS: { path: string; label: string; low?: number; high?: number; choices?: string }[] = [
+/** The parameters the panel offers, each with the range the form starts with (``off``: not ticked
+ *  at first; ticking a timed over-speeder's field adds one to a scenario that has none). */
+const PARAMETERS: { path: string; label: string; low?: number; high?: number; choices?: string; off?: boolean }[] = [
   { path: "abnormal.overspeed.share", label: "Over-speeding share", low: 0, high: 0.5 },
   { path: "abnormal.overspeed.excess", label: "Over-speeding excess", low: 0, high: 0.5 },
   { path: "abnormal.rounding.share", label: "Rounding share", low: 0, high: 0.5 },
@@ -18,11 +19,13 @@ const PARAMETERS: { path: string; label: string; low?: number; high?: number; ch
   { path: "lights.elapsed_s", label: "Time in the phase [s]", low: 0, high: 9.5 },
   { path: "ego.start_distance_m", label: "Start distance [m]", low: 25, high: 60 },
   { path: "ego.start_speed_mps", label: "Start speed [m/s]", low: 0, high: 10 },
+  { path: "abnormal.injection.arrive_s", label: "Over-speeder due at the line [s]", low: 0, high: 20, off: true },
+  { path: "abnormal.injection.excess", label: "Over-speeder excess", low: 0, high: 0.5, off: true },
 ];
 
 function parameterRows(): string {
   return PARAMETERS.map((p, i) => `<tr>
-    <td><label class="check"><input type="checkbox" data-param="${i}" checked /> ${esc(p.label)}</label></td>
+    <td><label class="check"><input type="checkbox" data-param="${i}" ${p.off ? "" : "checked"} /> ${esc(p.label)}</label></td>
     ${p.choices != null
       ? `<td colspan="2"><input data-choices="${i}" value="${esc(p.choices)}" aria-label="${esc(p.label)} choices" /></td>`
       : `<td><input type="number" step="any" data-low="${i}" value="${p.low}" aria-label="${esc(p.label)} low" /></td>

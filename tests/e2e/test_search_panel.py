@@ -20,7 +20,10 @@ def test_search_the_saved_scenario_and_keep_its_failure(studio_url: str, browser
     page.on("pageerror", lambda exc: errors.append(str(exc)))
     page.goto(studio_url + "/")
     page.wait_for_selector("#preview polyline.candidate")
-    assert page.locator("#search-parameters input[type=checkbox]").count() == 10
+    assert page.locator("#search-parameters input[type=checkbox]").count() == 12
+    # the timed over-speeder's fields are offered, not ticked: a search adds none unless asked
+    assert page.locator("#search-parameters input[type=checkbox]:checked").count() == 10
+    assert not page.locator("[data-param='10']").is_checked()
 
     page.click("#search-start")  # nothing saved yet
     page.wait_for_selector("#search-status.error")
