@@ -84,19 +84,24 @@ print(json.dumps([result.outcome, result.detail]))
 
 
 @pytest.mark.slow
-def test_sumo_driver_brakes_for_a_pedestrian_past_the_crossings_link() -> None:
-    """The nominal left turn of e_irregular_oblique, run 1311414304 (a seed of benchmarks/world_flow.py's
-    base seed): SUMO's driver, inside the junction past its crossing's link, drives into a pedestrian
-    walking in front of it without the look-ahead (sim/look_ahead.py); with it, it waits and passes.
-    Each episode runs first in a fresh process, as ``crossroads run`` does: SUMO's result can depend
-    on what the process ran before (a batch forks each episode for that reason). (A change of the
-    world's traffic may move the pedestrian: then find another such run with the benchmark,
-    ``--policy sumo --scenario scenarios/nominal/e_irregular_oblique-left.yaml``.)"""
-    path = REPO / "scenarios/nominal/e_irregular_oblique-left.yaml"
+@pytest.mark.parametrize(("scenario", "seed", "hit"), [
+    ("e_irregular_oblique-left", "1311414304", "hit pedestrian"),
+    ("a_single_lane-straight", "179128172", "hit vehicle"),
+])
+def test_sumo_driver_brakes_for_whoever_is_in_its_way_ahead(scenario: str, seed: str, hit: str) -> None:
+    """Runs of benchmarks/world_flow.py's base seed where SUMO's driver, without the look-ahead
+    (sim/look_ahead.py), collides, and with it waits and passes: on the nominal left turn of
+    e_irregular_oblique, inside the junction past its crossing's link, it drives into a pedestrian
+    walking in front of it; going straight on a_single_lane it stops at its line against the rear
+    corner of a left-turner waiting just inside the junction. Each episode runs first in a fresh
+    process, as ``crossroads run`` does: SUMO's result can depend on what the process ran before (a
+    batch forks each episode for that reason). (A change of the world's traffic may move the
+    others: then find another such run with the benchmark, ``--policy sumo --scenario ...``.)"""
+    path = REPO / f"scenarios/nominal/{scenario}.yaml"
     outcomes = {}
     for mode in ("off", "on"):
-        done = subprocess.run([sys.executable, "-c", _ONE_EPISODE, str(path), "1311414304", mode],
+        done = subprocess.run([sys.executable, "-c", _ONE_EPISODE, str(path), seed, mode],
                               capture_output=True, text=True, timeout=300, check=True)
         outcomes[mode] = json.loads(done.stdout.strip().splitlines()[-1])
-    assert outcomes["off"][0] == "collision" and outcomes["off"][1].startswith("hit pedestrian"), outcomes
+    assert outcomes["off"][0] == "collision" and outcomes["off"][1].startswith(hit), outcomes
     assert outcomes["on"][0] == "passed", outcomes

@@ -1,5 +1,5 @@
-"""SUMO's driver brakes for a pedestrian or cyclist in its way ahead: the corridor's geometry and
-the commands it gives SUMO."""
+"""SUMO's driver brakes for a pedestrian, cyclist or vehicle in its way ahead: the corridors'
+geometry and the commands it gives SUMO."""
 
 from __future__ import annotations
 
@@ -8,7 +8,18 @@ import math
 import numpy as np
 import pytest
 
-from crossroads.sim.look_ahead import BUFFER_M, COMFORT_DECEL_MPS2, LookAhead, corridor_length, in_the_way
+from crossroads.sim.look_ahead import (
+    BUFFER_M,
+    COMFORT_DECEL_MPS2,
+    VEHICLE_BUFFER_M,
+    VEHICLE_DECEL_MPS2,
+    LookAhead,
+    corridor_length,
+    footprint_points,
+    in_the_way,
+    vehicle_corridor_length,
+    vehicles_in_the_way,
+)
 
 LENGTH, WIDTH = 4.8, 2.0  # the ego's; it stands at the origin heading east, its front bumper at x = 2.4
 RADIUS = 0.25  # a pedestrian's
@@ -70,3 +81,52 @@ def test_it_stops_the_ego_once_and_hands_it_back_when_the_way_is_clear() -> None
 def test_off_means_off() -> None:
     rule, session = LookAhead("ego", enabled=False), _Session()
     assert not _update(rule, session, 3.0) and session.commands == []
+
+
+CAR = (4.5, 1.8)  # a car's length and width
+
+
+def _car_in_the_way(x: float, y: float, heading: float = 0.0, ego_speed: float = 0.0) -> bool:
+    px, py = footprint_points(np.array([x]), np.array([y]), np.array([heading]), np.array([CAR[0]]),
+                              np.array([CAR[1]]))
+    return bool(vehicles_in_the_way(0.0, 0.0, 0.0, ego_speed, LENGTH, WIDTH, px, py)[0])
+
+
+def test_a_car_s_footprint_points_are_its_corners_sides_and_centre() -> None:
+    px, py = footprint_points(np.array([10.0]), np.array([5.0]), np.array([math.pi / 2]), np.array([4.0]),
+                              np.array([2.0]))
+    points = set(zip(np.round(px[0], 6).tolist(), np.round(py[0], 6).tolist()))
+    assert {(9.0, 3.0), (11.0, 3.0), (9.0, 7.0), (11.0, 7.0), (10.0, 5.0)} <= points and len(points) == 9
+
+
+def test_a_vehicle_s_corridor_is_the_ego_s_braking_distance_and_a_metre() -> None:
+    assert vehicle_corridor_length(0.0) == VEHICLE_BUFFER_M
+    assert vehicle_corridor_length(8.0) == pytest.approx(64.0 / (2.0 * VEHICLE_DECEL_MPS2) + VEHICLE_BUFFER_M)
+
+
+def test_a_leader_at_its_standstill_gap_is_not_in_the_way_and_a_corner_over_the_bumper_is() -> None:
+    """SUMO keeps 2.5 m to a leader at a standstill: no braking for it. A left-turner turned 10°
+    whose rear corner reaches 0.3 m in front of the bumper: braking (a_single_lane, seed 179128172)."""
+    assert not _car_in_the_way(2.4 + 2.5 + 2.25, 0.0)
+    assert _car_in_the_way(2.4 + 2.5 + 2.25, 0.0, ego_speed=6.0)  # closing in at 6 m/s
+    heading = math.radians(10.0)
+    corner_x = 2.4 + 0.3  # where the rear right corner lies
+    centre_x = corner_x + 2.25 * math.cos(heading) - 0.9 * math.sin(heading)
+    centre_y = 2.25 * math.sin(heading) + 0.9 * math.cos(heading) - 0.9
+    assert _car_in_the_way(centre_x, centre_y, heading)
+
+
+def test_a_car_crossing_ahead_is_in_the_way_one_beside_or_behind_is_not() -> None:
+    assert _car_in_the_way(2.4 + 0.8 + 0.9, 0.0, heading=math.pi / 2)  # across the corridor, 0.8 m ahead
+    assert not _car_in_the_way(2.4, 3.3)  # alongside in the next lane
+    assert not _car_in_the_way(-7.0, 0.0)  # the follower
+
+
+def test_a_vehicle_in_the_way_stops_the_ego_too() -> None:
+    rule, session = LookAhead("ego"), _Session()
+    nobody = (np.array([]), np.array([]), np.array([]), np.array([]), np.array([]))
+    car = (np.array([2.4 + 0.5 + 2.25]), np.array([0.0]), np.array([0.0]), np.array([CAR[0]]), np.array([CAR[1]]))
+    ego = (0.0, 0.0, 0.0, 0.0, LENGTH, WIDTH)
+    assert rule.update(session, ego, *nobody[:4], nobody[4], vehicles=car)  # type: ignore[arg-type]
+    assert not rule.update(session, ego, *nobody[:4], nobody[4], vehicles=nobody)  # type: ignore[arg-type]
+    assert session.commands == [("ego", 0.0), ("ego", -1.0)]

@@ -358,16 +358,21 @@ class World:
         return obs, self.outcome
 
     def _look_ahead_for_sumo_driver(self, snap: Snapshot) -> None:
-        """SUMO's driver brakes for a pedestrian or cyclist in the ego's way (sim/look_ahead.py),
-        but not for one the courtesy holds (it waits for the ego)."""
-        rows = (snap.kind_code != _VEHICLE).nonzero()[0]
+        """SUMO's driver brakes for a pedestrian, cyclist or vehicle in the ego's way
+        (sim/look_ahead.py), but not for a pedestrian or cyclist the courtesy holds (it waits for
+        the ego)."""
+        is_vehicle = snap.kind_code == _VEHICLE
+        rows = (~is_vehicle).nonzero()[0]
         held = self._courtesy.held_pedestrians | set(self._courtesy.held_cyclists)
         if held:
             rows = np.array([r for r in rows.tolist() if str(snap.ids[r]) not in held], dtype=np.intp)
         x, y, speed, _, heading = self.ego[:5].tolist()
+        cars = is_vehicle.nonzero()[0]
         self._look_ahead.update(self.session, (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M),
                                 snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows],
-                                0.5 * np.maximum(snap.length[rows], snap.width[rows]))
+                                0.5 * np.maximum(snap.length[rows], snap.width[rows]),
+                                vehicles=(snap.x[cars], snap.y[cars], snap.heading[cars],
+                                          snap.length[cars], snap.width[cars]))
 
     def _let_pedestrians_stop(self, snap: Snapshot) -> bool:
         """Pedestrians and cyclists about to move into the standing ego stop (sim/courtesy.py);
