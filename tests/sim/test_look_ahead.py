@@ -86,10 +86,10 @@ def test_off_means_off() -> None:
 CAR = (4.5, 1.8)  # a car's length and width
 
 
-def _car_in_the_way(x: float, y: float, heading: float = 0.0, ego_speed: float = 0.0) -> bool:
-    px, py = footprint_points(np.array([x]), np.array([y]), np.array([heading]), np.array([CAR[0]]),
-                              np.array([CAR[1]]))
-    return bool(vehicles_in_the_way(0.0, 0.0, 0.0, ego_speed, LENGTH, WIDTH, px, py)[0])
+def _car_in_the_way(x: float, y: float, heading: float = 0.0, ego_speed: float = 0.0, speed: float = 0.0) -> bool:
+    return bool(vehicles_in_the_way(0.0, 0.0, 0.0, ego_speed, LENGTH, WIDTH, np.array([x]), np.array([y]),
+                                    np.array([heading]), np.array([speed]), np.array([CAR[0]]),
+                                    np.array([CAR[1]]))[0])
 
 
 def test_a_car_s_footprint_points_are_its_corners_sides_and_centre() -> None:
@@ -122,11 +122,21 @@ def test_a_car_crossing_ahead_is_in_the_way_one_beside_or_behind_is_not() -> Non
     assert not _car_in_the_way(-7.0, 0.0)  # the follower
 
 
+def test_a_car_about_to_cut_across_the_corridor_is_in_the_way() -> None:
+    """A car coming in from the side, as at the merge of two turns into one exit, is in the way
+    before it gets there; one driving away, or along the next lane, is not."""
+    assert _car_in_the_way(3.0, -5.5, heading=math.pi / 2, speed=5.0)  # in the corridor within the second
+    assert not _car_in_the_way(3.0, -5.5, heading=-math.pi / 2, speed=5.0)  # driving away
+    assert not _car_in_the_way(3.0, -5.5, heading=math.pi / 2)  # standing there
+    assert not _car_in_the_way(0.0, 3.3, heading=0.0, speed=12.0)  # overtaking in the next lane
+
+
 def test_a_vehicle_in_the_way_stops_the_ego_too() -> None:
     rule, session = LookAhead("ego"), _Session()
-    nobody = (np.array([]), np.array([]), np.array([]), np.array([]), np.array([]))
-    car = (np.array([2.4 + 0.5 + 2.25]), np.array([0.0]), np.array([0.0]), np.array([CAR[0]]), np.array([CAR[1]]))
+    nobody = (np.array([]), np.array([]), np.array([]), np.array([]), np.array([]), np.array([]))
+    car = (np.array([2.4 + 0.5 + 2.25]), np.array([0.0]), np.array([0.0]), np.array([0.0]), np.array([CAR[0]]),
+           np.array([CAR[1]]))
     ego = (0.0, 0.0, 0.0, 0.0, LENGTH, WIDTH)
-    assert rule.update(session, ego, *nobody[:4], nobody[4], vehicles=car)  # type: ignore[arg-type]
-    assert not rule.update(session, ego, *nobody[:4], nobody[4], vehicles=nobody)  # type: ignore[arg-type]
+    assert rule.update(session, ego, *nobody[:5], vehicles=car)  # type: ignore[arg-type]
+    assert not rule.update(session, ego, *nobody[:5], vehicles=nobody)  # type: ignore[arg-type]
     assert session.commands == [("ego", 0.0), ("ego", -1.0)]

@@ -54,6 +54,7 @@ NEAR_M = 30.0  # [m] nobody farther from the ego's centre is checked
 VEHICLE_DECEL_MPS2 = 4.5  # [m/s²] the braking a vehicle's corridor allows for (SUMO's driver's own)
 VEHICLE_BUFFER_M = 1.0  # [m] a vehicle's corridor beyond that braking distance
 VEHICLE_OVERLAP_M = 0.5  # [m] a vehicle's point this far behind the bumper still counts (touching)
+VEHICLE_TIMES_S = (0.0, 0.5, 1.0)  # [s] where vehicles are looked at: now and ahead at their speed
 
 
 def corridor_length(speed_mps: float) -> float:
@@ -100,10 +101,10 @@ def vehicle_corridor_length(speed_mps: float) -> float:
     return v * v / (2.0 * VEHICLE_DECEL_MPS2) + VEHICLE_BUFFER_M
 
 
-def vehicles_in_the_way(ego_x: float, ego_y: float, ego_heading: float, ego_speed: float,
-                        length: float, width: float, px: FloatArray, py: FloatArray) -> np.ndarray:
-    """(n,) bool: whose footprint points (``px``, ``py``: (n, k), :func:`footprint_points`) reach
-    into the vehicles' corridor ahead of the ego's front bumper (module docstring)."""
+def points_in_the_way(ego_x: float, ego_y: float, ego_heading: float, ego_speed: float,
+                      length: float, width: float, px: FloatArray, py: FloatArray) -> np.ndarray:
+    """(n,) bool: whose footprint points (``px``, ``py``: (n, k), :func:`footprint_points`) lie
+    in the vehicles' corridor ahead of the ego's front bumper (module docstring)."""
     c, s = math.cos(ego_heading), math.sin(ego_heading)
     fx, fy = px - (ego_x + 0.5 * length * c), py - (ego_y + 0.5 * length * s)
     ahead = fx * c + fy * s
@@ -111,6 +112,20 @@ def vehicles_in_the_way(ego_x: float, ego_y: float, ego_heading: float, ego_spee
     inside = ((ahead > -VEHICLE_OVERLAP_M) & (ahead < vehicle_corridor_length(ego_speed))
               & (np.abs(lateral) < 0.5 * width + LATERAL_MARGIN_M))
     return inside.any(axis=1)
+
+
+def vehicles_in_the_way(ego_x: float, ego_y: float, ego_heading: float, ego_speed: float, length: float,
+                        width: float, xs: FloatArray, ys: FloatArray, headings: FloatArray, speeds: FloatArray,
+                        lengths: FloatArray, widths: FloatArray) -> np.ndarray:
+    """(n,) bool: which vehicles (centres, headings [rad], speeds, lengths, widths) reach into the
+    vehicles' corridor now or at :data:`VEHICLE_TIMES_S` ahead at their speed and heading."""
+    out = np.zeros(len(xs), dtype=bool)
+    for t in VEHICLE_TIMES_S:
+        shift = speeds * t
+        px, py = footprint_points(xs + shift * np.cos(headings), ys + shift * np.sin(headings), headings,
+                                  lengths, widths)
+        out |= points_in_the_way(ego_x, ego_y, ego_heading, ego_speed, length, width, px, py)
+    return out
 
 
 class LookAhead:
@@ -126,7 +141,7 @@ class LookAhead:
                radii: FloatArray, vehicles: tuple[FloatArray, ...] | None = None) -> bool:
         """``ego``: its (x, y, heading, speed, length, width); the pedestrians' and cyclists'
         centres, headings [rad], speeds and radii (:func:`in_the_way`); ``vehicles``: their
-        centres, headings, lengths and widths (:func:`vehicles_in_the_way`). Commands the stop or
+        centres, headings, speeds, lengths and widths (:func:`vehicles_in_the_way`). Commands the stop or
         hands the ego back to SUMO's driver; whether it is braking now."""
         if not self.enabled:
             return False
@@ -136,11 +151,11 @@ class LookAhead:
             x, y, heading, speed, length, width, xs[near], ys[near], headings[near], speeds[near],
             radii[near]).any())
         if not blocked and vehicles is not None:
-            vx, vy, vheading, vlength, vwidth = vehicles
+            vx, vy, vheading, vspeed, vlength, vwidth = vehicles
             near = (np.hypot(vx - x, vy - y) < NEAR_M).nonzero()[0]
-            if len(near):
-                px, py = footprint_points(vx[near], vy[near], vheading[near], vlength[near], vwidth[near])
-                blocked = bool(vehicles_in_the_way(x, y, heading, speed, length, width, px, py).any())
+            blocked = bool(len(near)) and bool(vehicles_in_the_way(
+                x, y, heading, speed, length, width, vx[near], vy[near], vheading[near], vspeed[near],
+                vlength[near], vwidth[near]).any())
         if blocked != self.braking:
             session.set_speed(self.ego_id, 0.0 if blocked else -1.0)
             self.braking = blocked

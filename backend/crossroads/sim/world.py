@@ -371,7 +371,7 @@ class World:
         self._look_ahead.update(self.session, (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M),
                                 snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows],
                                 0.5 * np.maximum(snap.length[rows], snap.width[rows]),
-                                vehicles=(snap.x[cars], snap.y[cars], snap.heading[cars],
+                                vehicles=(snap.x[cars], snap.y[cars], snap.heading[cars], snap.speed[cars],
                                           snap.length[cars], snap.width[cars]))
 
     def _let_pedestrians_stop(self, snap: Snapshot) -> bool:
