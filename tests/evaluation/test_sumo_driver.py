@@ -75,8 +75,8 @@ from crossroads.evaluation.episode import run_episode
 from crossroads.evaluation.sumo_driver import SumoDriverPolicy
 from crossroads.scenario.spec import load_scenario, to_world_config
 from crossroads.sim.world import World
-path, seed, look_ahead = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3] == "on"
-driver = dataclasses.replace(SumoDriverPolicy().driver, look_ahead=look_ahead)
+path, seed, rule, mode = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3], sys.argv[4] == "on"
+driver = dataclasses.replace(SumoDriverPolicy().driver, **{rule: mode})
 with World(to_world_config(load_scenario(path), path.parent)) as world:
     result = run_episode(world, SumoDriverPolicy(driver=driver), seed=seed)
 print(json.dumps([result.outcome, result.detail]))
@@ -100,8 +100,24 @@ def test_sumo_driver_brakes_for_whoever_is_in_its_way_ahead(scenario: str, seed:
     path = REPO / f"scenarios/nominal/{scenario}.yaml"
     outcomes = {}
     for mode in ("off", "on"):
-        done = subprocess.run([sys.executable, "-c", _ONE_EPISODE, str(path), seed, mode],
+        done = subprocess.run([sys.executable, "-c", _ONE_EPISODE, str(path), seed, "look_ahead", mode],
                               capture_output=True, text=True, timeout=300, check=True)
         outcomes[mode] = json.loads(done.stdout.strip().splitlines()[-1])
     assert outcomes["off"][0] == "collision" and outcomes["off"][1].startswith(hit), outcomes
+    assert outcomes["on"][0] == "passed", outcomes
+
+
+@pytest.mark.slow
+def test_sumo_driver_clears_the_junction_once_its_light_is_no_longer_green() -> None:
+    """The nominal left turn of c_three_lane, run 1689994212 of benchmarks/world_flow.py's base
+    seed: without clearing, SUMO's driver stands at its left turn's waiting point from its yellow
+    to the end of the episode, yielding to the cross street and then to the oncoming stream; with
+    it, it drives on in the all-red and passes. Fresh processes, as above."""
+    path = REPO / "scenarios/nominal/c_three_lane-left.yaml"
+    outcomes = {}
+    for mode in ("off", "on"):
+        done = subprocess.run([sys.executable, "-c", _ONE_EPISODE, str(path), "1689994212", "clear_junction", mode],
+                              capture_output=True, text=True, timeout=300, check=True)
+        outcomes[mode] = json.loads(done.stdout.strip().splitlines()[-1])
+    assert outcomes["off"][0] == "timeout", outcomes
     assert outcomes["on"][0] == "passed", outcomes

@@ -79,13 +79,19 @@ class SumoDriver:
     # on the nominal left turn of c_three_lane, 4 of 30 runs timed out so (base seed 20261206);
     # with it 2 of those 4 passed in the next cycle. None: wait for every foe.
     ignore_foes_below_mps: float | None = 1.0
-    # brake for a pedestrian or cyclist in the way ahead, which SUMO's driver no longer sees once
-    # past a crossing's link (sim/look_ahead.py)
+    # brake for a pedestrian, cyclist or vehicle in the way ahead, or about to be (sim/look_ahead.py)
     look_ahead: bool = True
+    # once its light is no longer green while it is inside the junction, drive on regardless of
+    # the junction's right of way (the look-ahead still keeps it from driving into anyone): SUMO's
+    # driver otherwise stands at its left turn's waiting point, yielding to the cross street's
+    # green and then to the oncoming stream again, through whole cycles. On the nominal left turn
+    # of c_three_lane (the first 60 runs of base seed 20261206) 9 timeouts became 3, no collision.
+    clear_junction: bool = True
 
 # SUMO speed-mode bits (sumo.dlr.de/docs/TraCI/Change_Vehicle_State.html#speed_mode_0xb3).
 SPEED_MODE_DEFAULT = 31  # all checks on
 SPEED_MODE_IGNORE_ALL = 0  # no safe speed, no limits, no lights, no junctions
+SPEED_MODE_CLEARING = 23  # all checks but the right of way at intersections (bit 3)
 
 # moveToXY keepRoute values (libsumo docstring of vehicle.moveToXY):
 KEEP_ROUTE_ON_ROUTE = 1  # map onto the closest lane of the vehicle's own route (incl. internal lanes)

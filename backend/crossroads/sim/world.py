@@ -52,7 +52,7 @@ from crossroads.sim.signals import (
 )
 from crossroads.sim.snapshot import KIND_CODE, Snapshot
 from crossroads.sim.start import place_ego
-from crossroads.sim.sumo import SumoDriver, SumoSession
+from crossroads.sim.sumo import SPEED_MODE_CLEARING, SPEED_MODE_DEFAULT, SumoDriver, SumoSession
 from crossroads.sim.traffic import DemandPlan, build_plan, write_plan
 
 EGO_ID = "ego"
@@ -234,6 +234,7 @@ class World:
         if sumo_driver is not None:
             self.session.release_ego(EGO_ID)
         self.time_s = 0.0
+        self._sumo_driver_clearing = False  # SUMO's driver clearing the junction (SumoDriver.clear_junction)
         self._front_stopped: tuple[str, float] | None = None  # (id, since [s])
         self._stop_line_crossed_s: float | None = None
         self._abnormal_ids = self.abnormal.update(self.session)
@@ -355,7 +356,17 @@ class World:
             obs = self._observe(snap)
         if self.outcome is None and self._look_ahead.enabled:
             self._look_ahead_for_sumo_driver(snap)
+        if self.outcome is None and self.sumo_driver is not None and self.sumo_driver.clear_junction:
+            self._let_sumo_driver_clear(obs.light.light)
         return obs, self.outcome
+
+    def _let_sumo_driver_clear(self, light: str) -> None:
+        """SUMO's driver, inside the junction when its light is no longer green, drives on
+        regardless of the junction's right of way (``SumoDriver.clear_junction``)."""
+        clearing = light != "green" and self.session.vehicle_lane(EGO_ID).startswith(":")
+        if clearing != self._sumo_driver_clearing:
+            self.session.set_speed_mode(EGO_ID, SPEED_MODE_CLEARING if clearing else SPEED_MODE_DEFAULT)
+            self._sumo_driver_clearing = clearing
 
     def _look_ahead_for_sumo_driver(self, snap: Snapshot) -> None:
         """SUMO's driver brakes for a pedestrian, cyclist or vehicle in the ego's way
