@@ -39,11 +39,11 @@ import numpy as np
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, SIM_STEP_S
 from crossroads.geometry import project_onto_polyline
 from crossroads.scenario.spec import ScenarioSpec, to_world_config
-from crossroads.sim.abnormal import injected_departures, junction_lane_sets, with_departures
+from crossroads.sim.abnormal import junction_lane_sets
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.signals import TlProgram, phase_at
 from crossroads.sim.sumo import SumoSession
-from crossroads.sim.traffic import build_plan, write_plan
+from crossroads.sim.traffic import write_plan
 from crossroads.sim.world import EGO_ID, ROUTE_MARGIN_S, World
 
 EGO_VTYPE = "ego"
@@ -163,13 +163,14 @@ def _sumocfg(args: tuple[str, ...], files: dict[str, str], end_s: float) -> str:
 def export_bundle(spec: ScenarioSpec, seed: int, out_dir: Path, *, base_dir: str | Path | None = None) -> Bundle:
     """Write the SUMO bundle of episode ``seed`` of ``spec`` into ``out_dir`` (module docstring)."""
     config = to_world_config(spec, base_dir=base_dir)
+    seeds = EpisodeSeeds.of(seed)
     # what the world decides before it starts SUMO: one place for it (the world's own set-up)
     world = World(config)
     try:
         junction, program = world.junction, world.program
         phase_index, elapsed_s = world.start_phase  # the light at the ego's entry
         placement = world.placement  # where and on which route the ego enters
-        world_approach = world.approach
+        demand = world.drawn_demand(seeds.traffic)  # with the injected over-speeders
     finally:
         world.close()
 
@@ -179,13 +180,8 @@ def export_bundle(spec: ScenarioSpec, seed: int, out_dir: Path, *, base_dir: str
              "ego": out_dir / f"{name}.ego.rou.xml", "additional": out_dir / f"{name}.add.xml",
              "config": out_dir / f"{name}.sumocfg"}
     shutil.copyfile(config.net_file, paths["net"])
-    seeds = EpisodeSeeds.of(seed)
     end_s = config.warmup_s + config.timeout_s
-    injected = injected_departures(junction, world_approach, config.abnormal.injection,
-                                   episode_start_s=config.warmup_s, limit_mps=config.abnormal.limit_outside_mps)
-    write_plan(with_departures(build_plan(junction, config.demand, seed=seeds.traffic,
-                                          duration_s=config.warmup_s + config.timeout_s + ROUTE_MARGIN_S),
-                               injected), paths["routes"])
+    write_plan(demand, paths["routes"])
     # SUMO as the world starts it: its command line, every lane (internal ones included), and the
     # lane the ego departs on
     depart_lane = f"{placement.route_edges[0]}_{placement.depart_lane}"

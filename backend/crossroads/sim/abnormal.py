@@ -125,8 +125,10 @@ def injected_departures(junction: Junction, ego: Approach, injection: Injection 
     approach that goes straight, from the start of its edge, timed so that the first reaches the
     stop line ``injection.arrive_s`` after ``episode_start_s`` at ``limit_mps × (1 + excess)``
     (none departs before 0: one due earlier than its lane allows comes late)."""
+    if injection is None or injection.count == 0:
+        return ()  # most scenarios: no look at the junction
     lane = injection_lane(junction, ego)
-    if injection is None or injection.count == 0 or lane is None:
+    if lane is None:
         return ()
     opp = opposite_approach(junction, ego)
     exit_lane = next(c.to_lane for c in opp.connections_for("straight") if c.from_lane == lane.id)

@@ -201,11 +201,8 @@ class World:
         self.sumo_driver = sumo_driver
         self.events = []
         traffic_seq, sumo_seq, abnormal_seq, noise_seq = np.random.SeedSequence(seed).spawn(4)
-        self.demand_plan = self._without_start_zone_departures(with_departures(build_plan(
-            self.junction, cfg.demand, seed=int(traffic_seq.generate_state(1)[0]),
-            duration_s=cfg.warmup_s + cfg.timeout_s + ROUTE_MARGIN_S), injected_departures(
-                self.junction, self.approach, cfg.abnormal.injection, episode_start_s=cfg.warmup_s,
-                limit_mps=cfg.abnormal.limit_outside_mps)))
+        self.demand_plan = self._without_start_zone_departures(
+            self.drawn_demand(int(traffic_seq.generate_state(1)[0])))
         routes = write_plan(self.demand_plan, self._work_dir / "traffic.rou.xml")
         self.session.close()
         self.session.start(cfg.net_file, [routes], seed=int(sumo_seq.generate_state(1)[0] % 2**31),
@@ -275,6 +272,16 @@ class World:
         behind, ahead = self._start_zone_reach_m()
         return frozenset(edge for edge, start in zip(lead.edges, lead.lane_starts_m)
                          if centre - behind <= start <= centre + ahead)
+
+    def drawn_demand(self, traffic_seed: int) -> DemandPlan:
+        """The episode's demand drawn from ``traffic_seed`` (warm-up, timeout and a margin), with
+        the scenario's injected over-speeders; :meth:`reset` then holds the start zone clear."""
+        cfg = self.config
+        plan = build_plan(self.junction, cfg.demand, seed=traffic_seed,
+                          duration_s=cfg.warmup_s + cfg.timeout_s + ROUTE_MARGIN_S)
+        return with_departures(plan, injected_departures(
+            self.junction, self.approach, cfg.abnormal.injection, episode_start_s=cfg.warmup_s,
+            limit_mps=cfg.abnormal.limit_outside_mps))
 
     def _without_start_zone_departures(self, plan: DemandPlan) -> DemandPlan:
         """``plan`` less the vehicles and cyclists that would depart in the start zone while it is
