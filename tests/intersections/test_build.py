@@ -202,6 +202,28 @@ def test_failed_build_leaves_no_cache_entry(tmp_path: Path, monkeypatch: pytest.
     assert list(root.iterdir()) == []
 
 
+def test_a_build_finished_meanwhile_by_another_process_is_kept(tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two workers building the same net at once: the later one must not pull the earlier one's
+    finished build from under a simulation already reading it (a batch lost an episode to
+    FileNotFoundError so)."""
+    spec = load_spec("a_single_lane")
+    entry = tmp_path / "entry"
+    real_build_into = build_mod._build_into
+
+    def build_while_another_finishes(spec_, tmp, key):
+        monkeypatch.setattr(build_mod, "_build_into", real_build_into)
+        build_network(spec_, entry)  # the other worker, done first
+        (entry / "in-use.marker").write_text("a simulation reads this build")
+        real_build_into(spec_, tmp, key)
+
+    monkeypatch.setattr(build_mod, "_build_into", build_while_another_finishes)
+    net = build_network(spec, entry)
+    assert net == entry / "net.net.xml" and net.is_file()
+    assert (entry / "in-use.marker").is_file()  # theirs kept, not replaced
+    assert [p.name for p in tmp_path.iterdir()] == ["entry"]  # ours cleaned up
+
+
 def test_explicit_out_dir(tmp_path: Path) -> None:
     spec = load_spec("a_single_lane")
     net = build_network(spec, tmp_path / "mine")

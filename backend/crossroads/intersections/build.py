@@ -119,6 +119,10 @@ def build_network(spec: IntersectionSpec, out_dir: str | Path | None = None, *, 
     tmp = Path(tempfile.mkdtemp(prefix=f".{entry.name}.", suffix=".tmp", dir=entry.parent))
     try:
         _build_into(spec, tmp, key)
+        if not force and _is_build_of(entry, key):
+            # Another process finished the same build meanwhile, and may be reading it already:
+            # keep theirs (as good as ours) rather than pull it from under them.
+            return entry / NET_FILE
         if entry.exists():
             shutil.rmtree(entry)
         try:
