@@ -78,7 +78,8 @@ def _flow(task: tuple[str, int, float]) -> dict[str, object]:
     junction = read_junction(cfg.net_file, cfg.junction_id)
     with tempfile.TemporaryDirectory() as tmp:
         report = measure_flow(junction, cfg.demand, Path(tmp), seed=seed, warmup_s=cfg.warmup_s,
-                              window_s=window, gridlock_stand_s=cfg.gridlock_stand_s)
+                              window_s=window, gridlock_stand_s=cfg.gridlock_stand_s,
+                              junction_clearing=cfg.junction_clearing)
     return {"intersection": str(spec.intersection), "kinds": [
         {"kind": k.kind, "demand": k.demand_per_lane_h, "crossed": k.crossed_per_lane_h,
          "removed": k.removed} for k in report.kinds]}

@@ -258,11 +258,14 @@ def test_content_hash_is_canonical_and_sensitive() -> None:
         validate_scenario(with_({"runs": 200, "rho": None, "traffic.vehicles_per_hour": 400})))
     for change in ({"seed": 100}, {"runs": 11}, {"abnormal.rounding.share": 0.11}, {"rho": 0.51},
                    {"ego.entrance_lane": "south_in_2"}, {"name": "other"}, {"approach": None},
-                   {"abnormal.injection": {"arrive_s": 4.0}}):
+                   {"abnormal.injection": {"arrive_s": 4.0}}, {"junction_clearing": False}):
         assert content_hash(validate_scenario(with_(change, FULL))) != h, change
     # a field added later, when none, leaves the identity of the scenarios stored before it as it was
     assert content_hash(validate_scenario(with_({"abnormal.injection": None}, FULL))) == h
     assert '"injection"' not in canonical_json(validate_scenario(FULL))
+    # ... and so does one at its default
+    assert content_hash(validate_scenario(with_({"junction_clearing": True}, FULL))) == h
+    assert '"junction_clearing"' not in canonical_json(validate_scenario(FULL))
 
 
 def test_content_hash_is_pinned() -> None:

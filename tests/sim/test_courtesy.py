@@ -9,7 +9,17 @@ import numpy as np
 import pytest
 
 from crossroads.intersections import catalogue
-from crossroads.sim.courtesy import CYCLIST_STANDOFF_S, Courtesy, Movers, cyclist_reach, riding_into, walking_into
+from crossroads.sim.courtesy import (
+    CYCLIST_STANDOFF_S,
+    Cars,
+    Courtesy,
+    Movers,
+    car_reach,
+    cyclist_reach,
+    driving_into,
+    riding_into,
+    walking_into,
+)
 from crossroads.sim.sumo import SumoSession
 from crossroads.sim.traffic import VTYPES_XML
 
@@ -42,6 +52,47 @@ def test_a_cyclist_looks_as_far_as_it_needs_to_stop() -> None:
     # the same car standing straight: it rides past
     assert not bool(riding_into(0.0, 0.0, 0.0, 4.8, 2.0, np.array([-6.0]), np.array([-1.6]), np.array([0.0]),
                                 np.array([5.4]))[0])
+
+
+def _driving(x: float, y: float, heading: float, speed: float, ego_heading: float = 0.0) -> bool:
+    return bool(driving_into(0.0, 0.0, ego_heading, 4.8, 2.0, np.array([x]), np.array([y]), np.array([heading]),
+                             np.array([speed]), np.array([4.5]), np.array([1.8]))[0])
+
+
+def test_a_driver_looks_as_far_as_it_needs_to_stop() -> None:
+    assert car_reach(np.array([10.0]))[0] == pytest.approx(10.0 + 100.0 / 9.0)
+
+
+def test_a_car_heading_for_the_standing_egos_side_is_driving_into_it() -> None:
+    # the ego stands across the way (heading north); a car 20 m to its west drives east at 10 m/s:
+    # its bumper is 15.35 m from the ego's side, within its 21.1 m reach
+    assert _driving(-20.0, 0.0, 0.0, 10.0, ego_heading=np.pi / 2)
+    assert not _driving(-40.0, 0.0, 0.0, 10.0, ego_heading=np.pi / 2)  # beyond its reach
+    assert _driving(-5.0, 0.0, 0.0, 0.0, ego_heading=np.pi / 2)  # standing: 1 m ahead of its bumper
+    assert not _driving(-6.0, 0.0, 0.0, 0.0, ego_heading=np.pi / 2)
+
+
+def test_a_car_passing_alongside_or_driving_away_is_not() -> None:
+    assert not _driving(-15.0, 3.5, 0.0, 10.0)  # the next lane, 3.5 m from the ego's centre line
+    assert not _driving(8.0, 0.0, 0.0, 10.0)  # ahead of the ego, driving away
+    assert _driving(-15.0, 1.2, 0.0, 10.0)  # 1.2 m off the ego's line: its side would touch
+
+
+def _cars(*rows: tuple[str, float, float, float, float]) -> Cars:
+    ids, x, y, heading, speed = (np.array(c) for c in zip(*rows, strict=True))
+    return Cars(ids, x.astype(float), y.astype(float), heading.astype(float), speed.astype(float),
+                np.full(len(rows), 4.5), np.full(len(rows), 1.8))
+
+
+def test_cars_held_while_the_ego_stands_and_released_when_it_drives() -> None:
+    rule, session = Courtesy(), _Recorder()
+    nobody = Movers(*(np.array([]) for _ in range(5)))
+    cars = _cars(("behind", -15.0, 0.0, 0.0, 8.0), ("alongside", -15.0, 3.5, 0.0, 8.0))
+    for _ in range(2):
+        rule.update(session, nobody, nobody, (0.0, 0.0, 0.0, 0.0, 4.8, 2.0), cars)  # type: ignore[arg-type]
+    assert session.calls == [("hold", "behind")] and rule.held_cars == {"behind"}
+    rule.update(session, nobody, nobody, (0.0, 0.0, 0.0, 3.0, 4.8, 2.0), cars)  # type: ignore[arg-type]
+    assert session.calls == [("hold", "behind"), ("release", "behind")] and not rule.held_cars
 
 
 class _Recorder:

@@ -306,9 +306,16 @@ class ScenarioSpec(BaseModel):
         "null turns this gridlock breaker off.")
     standing_ego_courtesy: bool = Field(
         default=True,
-        description="Pedestrians and cyclists stop rather than walk or ride into the ego while it stands, "
-        "and a cyclist held 8 s goes round it (is removed, an episode event) (sim/courtesy.py); false "
-        "keeps SUMO's, who walk their crossings and ride their lanes whatever stands across them.")
+        description="Pedestrians, cyclists and drivers stop rather than walk, ride or drive into the ego "
+        "while it stands, and a cyclist held 8 s goes round it (is removed, an episode event) "
+        "(sim/courtesy.py); false keeps SUMO's, who walk their crossings and ride their lanes whatever "
+        "stands across them.")
+    junction_clearing: bool = Field(
+        default=True,
+        description="A vehicle (not the ego) still inside the junction when its movement's light is no "
+        "longer green drives on regardless of the junction's right of way, keeping its distance to "
+        "whoever is ahead (sim/clearing.py); false keeps SUMO's, whose left-turners then went on "
+        "yielding inside the junction into the cross street's green.")
     runs: int = Field(default=EVALUATION_RUNS, ge=1, le=MAX_RUNS, description="[-] Episodes per policy (paper: 200).")
     seed: int = Field(
         default=0, ge=0, le=MAX_SEED,
@@ -425,17 +432,21 @@ def canonical_json(spec: ScenarioSpec) -> str:
 
     Two files that differ only in layout, key order, or in stating a default explicitly give the
     same text. A ``{net: ...}`` path enters as written (not the file's content). A field added
-    after scenarios were stored (:data:`_ADDED_LATER`) is left out while it is none, so that
-    those scenarios keep their identity.
+    after scenarios were stored is left out while it is none (:data:`_ADDED_LATER`) or at its
+    default (:data:`_ADDED_LATER_TOP`), so that those scenarios keep their identity.
     """
     data = spec.model_dump(mode="json")
     for group, name in _ADDED_LATER:
         if data[group].get(name) is None:
             del data[group][name]
+    for name, default in _ADDED_LATER_TOP.items():
+        if data.get(name) == default:
+            del data[name]
     return json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
 
 
 _ADDED_LATER = (("abnormal", "injection"),)  # (group, field): left out of the identity while none
+_ADDED_LATER_TOP = {"junction_clearing": True}  # (field, default): left out of the identity while at it
 
 
 def content_hash(spec: ScenarioSpec) -> str:
@@ -523,6 +534,7 @@ def to_world_config(spec: ScenarioSpec, base_dir: str | Path | None = None) -> W
         warmup_s=spec.warmup_s,
         timeout_s=spec.timeout_s,
         gridlock_stand_s=spec.gridlock_stand_s,
+        junction_clearing=spec.junction_clearing,
         standing_ego_courtesy=spec.standing_ego_courtesy,
         perception_noise=spec.perception_noise,
         rho=spec.rho,

@@ -81,4 +81,5 @@ class WorldConfig:
     perception_noise: bool = True  # Gaussian noise of SPEC §3 on the observations
     rho: float | None = None  # ρ of the Bezier candidate paths; None: chosen per candidate
     gridlock_stand_s: float | None = DEFAULT_GRIDLOCK_STAND_S  # [s] sim/gridlock.py; None: off
-    standing_ego_courtesy: bool = True  # pedestrians and cyclists stop for a standing ego (sim/courtesy.py)
+    standing_ego_courtesy: bool = True  # pedestrians, cyclists and drivers stop for a standing ego (sim/courtesy.py)
+    junction_clearing: bool = True  # vehicles caught inside the junction by the end of their green clear it (sim/clearing.py)

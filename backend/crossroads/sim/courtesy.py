@@ -22,6 +22,13 @@ standing across the bike lane, it stands where that car waits to go, and the two
 each other (tried: SUMO's driver then passed only once the gridlock breaker took the cyclist out,
 after 138–159 s). A moving ego gets no courtesy: whoever it drives into is its collision.
 
+Drivers too: a car (not an abnormal one, which the scenario makes reckless on purpose) whose way
+ahead, :data:`LOOKAHEAD_S` at its speed plus its braking distance from its front bumper, would
+bring its body into the standing ego is held until the ego drives off or it no longer faces the
+car. SUMO's drivers wait for a car standing across their way inside the junction as long as they
+heed the junction's right of way; a vehicle clearing the junction after its green
+(``sim/clearing.py``) no longer does, and no driver runs into a car standing in front of it.
+
 Pure geometry below; :class:`Courtesy` applies it to a session.
 """
 
@@ -44,6 +51,9 @@ PEDESTRIAN_MARGIN_M = 0.35  # [m] half a pedestrian's 0.5 m body and 0.1 m to sp
 CYCLIST_MARGIN_M = 0.45  # [m] half a bicycle's 0.65 m and 0.12 m to spare
 CYCLIST_DECEL_MPS2 = 3.0  # [m/s²] the world's bicycles brake at this (sim/traffic.py vType)
 CYCLIST_STANDOFF_S = 8.0  # [s] a cyclist held this long by a still standing ego goes round it
+CAR_DECEL_MPS2 = 4.5  # [m/s²] the world's cars brake at this (sim/traffic.py vType)
+CAR_SPARE_M = 0.2  # [m] kept between a held car's side and the ego, beyond half its width
+NEAR_CAR_M = 40.0  # [m] no car farther from the ego's centre is checked (14 m/s: 36 m reach)
 _SAMPLES = np.linspace(0.0, 1.0, 8)  # points along the way ahead checked against the footprint
 NEAR_M = 8.0  # [m] nobody farther from the ego's centre is checked
 
@@ -64,15 +74,24 @@ def cyclist_reach(speed: FloatArray) -> FloatArray:
     return speed * LOOKAHEAD_S + speed**2 / (2.0 * CYCLIST_DECEL_MPS2)
 
 
+def car_reach(speed: FloatArray) -> FloatArray:
+    """[m] how far ahead of its bumper a driver looks: :data:`LOOKAHEAD_S` at its speed plus its
+    braking distance."""
+    speed = np.asarray(speed, dtype=float)
+    return speed * LOOKAHEAD_S + speed**2 / (2.0 * CAR_DECEL_MPS2)
+
+
 def moving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
                 x: FloatArray, y: FloatArray, heading: FloatArray, reach: FloatArray,
-                margin_m: float) -> np.ndarray:
+                margin_m: float | FloatArray) -> np.ndarray:
     """Which of the movers at ``x``, ``y`` heading ``heading`` would, within ``reach`` [m] (at least
-    :data:`LOOKAHEAD_MIN_M`), come into the ego's footprint widened by ``margin_m`` — and are not in
-    it already (one already touching it is the judge's business, not this rule's)."""
+    :data:`LOOKAHEAD_MIN_M`), come into the ego's footprint widened by ``margin_m`` (one for all,
+    or one each) — and are not in it already (one already touching it is the judge's business,
+    not this rule's)."""
     reach = np.maximum(np.asarray(reach, dtype=float), LOOKAHEAD_MIN_M)
     cos_e, sin_e = math.cos(ego_heading), math.sin(ego_heading)
-    half_l, half_w = ego_length / 2.0 + margin_m, ego_width / 2.0 + margin_m
+    margin = np.broadcast_to(np.asarray(margin_m, dtype=float), reach.shape)[:, None]
+    half_l, half_w = ego_length / 2.0 + margin, ego_width / 2.0 + margin
     # points along each one's way ahead, in the ego's frame: (n, samples)
     px = np.asarray(x)[:, None] + np.cos(heading)[:, None] * reach[:, None] * _SAMPLES
     py = np.asarray(y)[:, None] + np.sin(heading)[:, None] * reach[:, None] * _SAMPLES
@@ -97,35 +116,72 @@ def riding_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: floa
                        cyclist_reach(speed), CYCLIST_MARGIN_M)
 
 
+def driving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
+                 x: FloatArray, y: FloatArray, heading: FloatArray, speed: FloatArray,
+                 length: FloatArray, width: FloatArray) -> np.ndarray:
+    """:func:`moving_into` for cars (centres ``x``, ``y``): from the front bumper, :func:`car_reach`
+    ahead, the body as half its width plus :data:`CAR_SPARE_M` around its way."""
+    heading = np.asarray(heading, dtype=float)
+    half = 0.5 * np.asarray(length, dtype=float)
+    return moving_into(ego_x, ego_y, ego_heading, ego_length, ego_width,
+                       np.asarray(x) + half * np.cos(heading), np.asarray(y) + half * np.sin(heading),
+                       heading, car_reach(speed), 0.5 * np.asarray(width, dtype=float) + CAR_SPARE_M)
+
+
+class Cars(NamedTuple):
+    """The cars one step may hold: :class:`Movers` plus their sizes [m]."""
+
+    ids: np.ndarray
+    x: FloatArray
+    y: FloatArray
+    heading: FloatArray
+    speed: FloatArray
+    length: FloatArray
+    width: FloatArray
+
+
+NO_CARS = Cars(*(np.array([]) for _ in range(7)))
+
+
 class Courtesy:
-    """Holds the pedestrians and cyclists that would move into the standing ego (see the module's
-    rule), lets them go again, and takes out cyclists held too long; ``enabled`` False turns the
-    rule off."""
+    """Holds the pedestrians, cyclists and cars that would move into the standing ego (see the
+    module's rule), lets them go again, and takes out cyclists held too long; ``enabled`` False
+    turns the rule off."""
 
     def __init__(self, enabled: bool = True) -> None:
         self.enabled = enabled
         self.held_pedestrians: set[str] = set()
         self.held_cyclists: dict[str, float] = {}  # id -> held since [s, SUMO time]
+        self.held_cars: set[str] = set()
 
     def may_act(self, ego_speed: float) -> bool:
         """Whether :meth:`update` can change anything: the ego stands, or someone is held."""
         return self.enabled and (ego_speed < EGO_STANDING_MPS
-                                 or bool(self.held_pedestrians or self.held_cyclists))
+                                 or bool(self.held_pedestrians or self.held_cyclists or self.held_cars))
 
     def update(self, session: SumoSession, pedestrians: Movers, cyclists: Movers,
-               ego: tuple[float, float, float, float, float, float]) -> list[Removal]:
+               ego: tuple[float, float, float, float, float, float], cars: Cars = NO_CARS) -> list[Removal]:
         """``ego``: its (x, y, heading, speed, length, width). Holds and releases through
-        ``session`` (pedestrians by their walking speed, cyclists as the vehicles they are);
-        returns the cyclists taken out (held :data:`CYCLIST_STANDOFF_S`)."""
+        ``session`` (pedestrians by their walking speed, cyclists and cars as the vehicles they
+        are, braking as SUMO lets them); returns the cyclists taken out (held
+        :data:`CYCLIST_STANDOFF_S`)."""
         if not self.enabled:
             return []
         standing = ego[3] < EGO_STANDING_MPS
         now = _who(pedestrians, ego, walking_into) if standing else set()
         self.held_pedestrians = _apply(now, self.held_pedestrians, pedestrians.ids,
                                        session.hold_person, session.release_person)
+
+        def hold(vid: str) -> None:
+            session.set_speed(vid, 0.0)
+
+        def release(vid: str) -> None:
+            session.set_speed(vid, -1.0)
+
+        now = _cars_driving_into(cars, ego) if standing else set()
+        self.held_cars = _apply(now, self.held_cars, cars.ids, hold, release)
         now = _who(cyclists, ego, riding_into) if standing else set()
-        kept = _apply(now, set(self.held_cyclists), cyclists.ids,
-                      lambda vid: session.set_speed(vid, 0.0), lambda vid: session.set_speed(vid, -1.0))
+        kept = _apply(now, set(self.held_cyclists), cyclists.ids, hold, release)
         t = session.time_s
         self.held_cyclists = {vid: self.held_cyclists.get(vid, t) for vid in kept}
         removals = []
@@ -148,6 +204,17 @@ def _who(movers: Movers, ego: tuple[float, float, float, float, float, float],
     into = test(ego_x, ego_y, ego_heading, length, width, np.asarray(movers.x)[near], np.asarray(movers.y)[near],
                 np.asarray(movers.heading)[near], np.asarray(movers.speed)[near])
     return {str(movers.ids[r]) for r in near[into]}
+
+
+def _cars_driving_into(cars: Cars, ego: tuple[float, float, float, float, float, float]) -> set[str]:
+    ego_x, ego_y, ego_heading, _, length, width = ego
+    if not len(cars.ids):
+        return set()
+    near = (np.hypot(np.asarray(cars.x) - ego_x, np.asarray(cars.y) - ego_y) < NEAR_CAR_M).nonzero()[0]
+    if not len(near):
+        return set()
+    into = driving_into(ego_x, ego_y, ego_heading, length, width, *(np.asarray(a)[near] for a in cars[1:]))
+    return {str(cars.ids[r]) for r in near[into]}
 
 
 def _apply(now: set[str], held: set[str], present_ids: np.ndarray,

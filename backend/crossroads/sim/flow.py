@@ -16,6 +16,7 @@ from pathlib import Path
 
 from crossroads.constants import SIM_STEP_S
 from crossroads.network.road import Junction
+from crossroads.sim.clearing import JunctionClearing
 from crossroads.sim.gridlock import GridlockBreaker
 from crossroads.sim.sumo import SumoSession
 from crossroads.sim.traffic import TrafficDemand, build_plan, write_plan
@@ -49,9 +50,11 @@ class FlowReport:
 
 
 def measure_flow(junction: Junction, demand: TrafficDemand, work_dir: Path, *, seed: int,
-                 warmup_s: float, window_s: float, gridlock_stand_s: float | None) -> FlowReport:
+                 warmup_s: float, window_s: float, gridlock_stand_s: float | None,
+                 junction_clearing: bool = True) -> FlowReport:
     """Run the world of ``junction`` with ``demand`` (seeded) for ``warmup_s`` + ``window_s`` [s],
-    no ego, and measure its flow over the window (see the module's docstring)."""
+    no ego, and measure its flow over the window (see the module's docstring); the gridlock
+    breaker and the junction clearing (sim/clearing.py) as the world's."""
     plan = build_plan(junction, demand, seed=seed, duration_s=warmup_s + window_s)
     routes = write_plan(plan, work_dir / "flow.rou.xml")
     kind_of = {d.id: d.kind for d in plan.departures}
@@ -60,9 +63,11 @@ def measure_flow(junction: Junction, demand: TrafficDemand, work_dir: Path, *, s
     removed: Counter[str] = Counter()
     breaker = GridlockBreaker(junction, gridlock_stand_s)
     with SumoSession().start(junction.net_file, [routes], seed=seed) as session:
+        clearing = JunctionClearing(session, junction.tl_id, enabled=junction_clearing)
         alive: set[str] = set()
         for _ in range(int(round((warmup_s + window_s) / SIM_STEP_S))):
             session.step()
+            clearing.update(session)
             counting = session.time_s > warmup_s
             gone = alive  # who was there before this step and is not any more: arrived or removed
             for r in breaker.update(session):

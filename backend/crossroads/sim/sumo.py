@@ -551,6 +551,12 @@ class SumoSession:
     def person_ids(self) -> tuple[str, ...]:
         return tuple(self._persons)
 
+    @_sumo_errors
+    def vehicle_lanes(self) -> dict[str, str]:
+        """Every alive vehicle's lane now (ego excluded), by id."""
+        ids = tuple(self._vehicles)
+        return dict(zip(ids, map(libsumo.vehicle.getLaneID, ids), strict=True))
+
     # --- the ego ---------------------------------------------------------------------------
 
     @_sumo_errors
@@ -861,6 +867,11 @@ class SumoSession:
     def lane_ids(self) -> tuple[str, ...]:
         """Every lane of the network, internal lanes (":<junction>_…") included."""
         return tuple(libsumo.lane.getIDList())
+
+    @_sumo_errors
+    def lane_successors(self, lane_id: str) -> tuple[str, ...]:
+        """The lanes the links of ``lane_id`` lead to (internal lanes included)."""
+        return tuple(str(link[0]) for link in libsumo.lane.getLinks(lane_id))
 
     @_sumo_errors
     def lane_max_speed(self, lane_id: str) -> float:

@@ -34,7 +34,8 @@ from crossroads.planning import CandidatePath, plan_candidates
 from crossroads.sim.abnormal import AbnormalTraffic, injected_departures, with_departures
 from crossroads.sim.blocking import BlockedBy, held_whole_episode, nearest_barrier
 from crossroads.sim.config import WorldConfig
-from crossroads.sim.courtesy import Courtesy, Movers
+from crossroads.sim.clearing import JunctionClearing
+from crossroads.sim.courtesy import Cars, Courtesy, Movers
 from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
 from crossroads.sim.gridlock import GridlockBreaker
@@ -212,12 +213,15 @@ class World:
         self.abnormal.apply_speed_limits(self.session)
         self._noise_rng = np.random.default_rng(noise_seq)
         self._gridlocks = GridlockBreaker(self.junction, cfg.gridlock_stand_s)
+        self._clearing = JunctionClearing(self.session, self.program.tl_id, enabled=cfg.junction_clearing,
+                                          exempt=frozenset({EGO_ID}))
         self._courtesy = Courtesy(cfg.standing_ego_courtesy)
         self._look_ahead = LookAhead(EGO_ID, sumo_driver is not None and sumo_driver.look_ahead)
         for _ in range(int(round(cfg.warmup_s / SIM_STEP_S))):
             self.session.step()
             self.abnormal.update(self.session)
             self._gridlocks.update(self.session)
+            self._clearing.update(self.session)
         self.signal_offset_s = apply_start(self.session, self.program, *self.start_phase)
         x, y, heading = self._start_pose()
         self._hold_start_zone(x, y, heading)  # first: _clear_spawn steps SUMO, which inserts
@@ -353,6 +357,7 @@ class World:
         if self._start_zone_modes and self.time_s >= START_ZONE_S - 1e-9:
             self._release_start_zone()
         self.events.extend(r.to_event(self.time_s) for r in self._gridlocks.update(self.session))
+        self._clearing.update(self.session)
         snap = self.session.snapshot()
         around = self._around(snap)
         obs = self._observe(snap, around)
@@ -393,8 +398,9 @@ class World:
                                           snap.length[cars], snap.width[cars]))
 
     def _let_pedestrians_stop(self, snap: Snapshot) -> bool:
-        """Pedestrians and cyclists about to move into the standing ego stop (sim/courtesy.py);
-        a cyclist taken out after a standoff is an episode event. Whether anyone was taken out."""
+        """Pedestrians, cyclists and drivers (not the abnormal ones) about to move into the
+        standing ego stop (sim/courtesy.py); a cyclist taken out after a standoff is an episode
+        event. Whether anyone was taken out."""
         x, y, speed, _, heading = self.ego[:5].tolist()
         if not self._courtesy.may_act(speed):
             return False
@@ -402,8 +408,12 @@ class World:
         for code in (_PEDESTRIAN, _CYCLIST):
             rows = (snap.kind_code == code).nonzero()[0]
             movers.append(Movers(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows]))
+        rows = np.array([r for r in (snap.kind_code == _VEHICLE).nonzero()[0].tolist()
+                         if (pid := str(snap.ids[r])) != EGO_ID and pid not in self._abnormal_ids], dtype=np.intp)
+        cars = Cars(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows],
+                    snap.length[rows], snap.width[rows])
         removals = self._courtesy.update(self.session, movers[0], movers[1],
-                                         (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M))
+                                         (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M), cars)
         self.events.extend(r.to_event(self.time_s) for r in removals)
         return bool(removals)
 
