@@ -22,7 +22,7 @@ def test_internal_lanes_inherit_their_links_light_across_internal_junctions() ->
     controlled = [[("a_0", "b_0", ":C_0_0")], [("a_1", "c_0", ":C_1_0"), ("a_1", "c_1", ":C_1_1")],
                   [("w_0", "x_0", "")]]  # a link without an internal lane adds nothing
     successors = {":C_1_0": (":C_5_0",), ":C_5_0": ("c_0",), ":C_0_0": ("b_0",)}
-    links = movement_links(controlled, successors)
+    links = movement_links(controlled, lambda lane: successors.get(lane, ()))
     assert links == {":C_0_0": frozenset({0}), ":C_1_0": frozenset({1}), ":C_1_1": frozenset({1}),
                      ":C_5_0": frozenset({1})}
 

@@ -432,21 +432,21 @@ def canonical_json(spec: ScenarioSpec) -> str:
 
     Two files that differ only in layout, key order, or in stating a default explicitly give the
     same text. A ``{net: ...}`` path enters as written (not the file's content). A field added
-    after scenarios were stored is left out while it is none (:data:`_ADDED_LATER`) or at its
-    default (:data:`_ADDED_LATER_TOP`), so that those scenarios keep their identity.
+    after scenarios were stored (:data:`_ADDED_LATER`) is left out while it has the value it
+    had implicitly before (none, or its default), so that those scenarios keep their identity.
     """
     data = spec.model_dump(mode="json")
-    for group, name in _ADDED_LATER:
-        if data[group].get(name) is None:
-            del data[group][name]
-    for name, default in _ADDED_LATER_TOP.items():
-        if data.get(name) == default:
-            del data[name]
+    for *groups, name, before in _ADDED_LATER:
+        node = data
+        for group in groups:
+            node = node[group]
+        if node.get(name) == before:
+            del node[name]
     return json.dumps(data, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
 
 
-_ADDED_LATER = (("abnormal", "injection"),)  # (group, field): left out of the identity while none
-_ADDED_LATER_TOP = {"junction_clearing": True}  # (field, default): left out of the identity while at it
+# (group..., field, value): a field added later, left out of the identity while it has that value
+_ADDED_LATER = (("abnormal", "injection", None), ("junction_clearing", True))
 
 
 def content_hash(spec: ScenarioSpec) -> str:

@@ -20,7 +20,7 @@ Checked every :data:`CHECK_EVERY_S` of simulated time.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 from crossroads.sim.sumo import SPEED_MODE_CLEARING, SumoSession
 
@@ -29,12 +29,12 @@ GREEN = frozenset("Gg")  # SUMO's green link states (with and without priority)
 
 
 def movement_links(controlled: Iterable[Iterable[tuple[str, str, str]]],
-                   successors: dict[str, tuple[str, ...]]) -> dict[str, frozenset[int]]:
+                   successors: Callable[[str], tuple[str, ...]]) -> dict[str, frozenset[int]]:
     """For every internal lane of a traffic light's links, the link indices whose light its
     vehicles drove in on. ``controlled``: per link index, the (from, to, via) lane triples
-    (SUMO's controlled links); ``successors``: internal lane -> the lanes its links lead to, for
-    the internal lanes behind an internal junction (a left turn's part after its waiting
-    point), which no link names."""
+    (SUMO's controlled links); ``successors``: an internal lane -> the lanes its links lead to,
+    asked only of those lanes, to reach the internal lanes behind an internal junction (a left
+    turn's part after its waiting point), which no link names."""
     links: dict[str, set[int]] = {}
     for index, triples in enumerate(controlled):
         for _, _, via in triples:
@@ -43,11 +43,17 @@ def movement_links(controlled: Iterable[Iterable[tuple[str, str, str]]],
     todo = list(links)
     while todo:
         lane = todo.pop()
-        for nxt in successors.get(lane, ()):
+        for nxt in successors(lane):
             if nxt.startswith(":") and nxt not in links:
                 links[nxt] = links[lane]
                 todo.append(nxt)
     return {lane: frozenset(indices) for lane, indices in links.items()}
+
+
+def session_movement_links(session: SumoSession, tl_id: str) -> dict[str, frozenset[int]]:
+    """:func:`movement_links` of traffic light ``tl_id`` read from a running session (a property
+    of the net: the same for every episode on it)."""
+    return movement_links(session.tl_controlled_links(tl_id), session.lane_successors)
 
 
 def caught(lane: str, state: str, links: dict[str, frozenset[int]]) -> bool:
@@ -59,39 +65,36 @@ def caught(lane: str, state: str, links: dict[str, frozenset[int]]) -> bool:
 
 class JunctionClearing:
     """Applies the rule (module docstring) to the traffic light ``tl_id`` of a running session;
-    ``enabled`` False turns it off. ``exempt``: vehicles it never touches (the ego)."""
+    ``enabled`` False turns it off. ``links``: :func:`session_movement_links` when the caller
+    already has them (read from ``session`` otherwise). ``exempt``: vehicles it never touches (the
+    ego)."""
 
     def __init__(self, session: SumoSession, tl_id: str, *, enabled: bool = True,
+                 links: dict[str, frozenset[int]] | None = None,
                  exempt: frozenset[str] = frozenset()) -> None:
         self.enabled = enabled
         self.tl_id = tl_id
         self.exempt = exempt
         self.cleared: set[str] = set()
         self._next_check_s = 0.0
-        self._links: dict[str, frozenset[int]] = {}
+        self.links: dict[str, frozenset[int]] = {}
         if enabled:
-            internal = [lane for lane in session.lane_ids() if lane.startswith(":")]
-            self._links = movement_links(session.tl_controlled_links(tl_id),
-                                         {lane: session.lane_successors(lane) for lane in internal})
+            self.links = links if links is not None else session_movement_links(session, tl_id)
 
-    def update(self, session: SumoSession) -> int:
+    def update(self, session: SumoSession) -> None:
         """Let the vehicles caught inside the junction now clear it (at most once per
-        :data:`CHECK_EVERY_S`); how many it let go this time."""
+        :data:`CHECK_EVERY_S`)."""
         if not self.enabled:
-            return 0
+            return
         now = session.time_s
         if now + 1e-9 < self._next_check_s:
-            return 0
+            return
         self._next_check_s = now + CHECK_EVERY_S
         state = session.tl_state(self.tl_id)
-        let_go = 0
-        for vid, lane in session.vehicle_lanes().items():
-            if vid in self.cleared or vid in self.exempt:
-                continue
-            if caught(lane, state, self._links):
+        lanes = session.vehicle_lanes()
+        for vid, lane in lanes.items():
+            if vid not in self.cleared and vid not in self.exempt and caught(lane, state, self.links):
                 session.set_speed_mode(vid, SPEED_MODE_CLEARING)
                 self.cleared.add(vid)
-                let_go += 1
         if len(self.cleared) > 4096:  # forget the long gone, keep the set small
-            self.cleared &= set(session.vehicle_ids)
-        return let_go
+            self.cleared &= lanes.keys()

@@ -178,7 +178,7 @@ class Courtesy:
         def release(vid: str) -> None:
             session.set_speed(vid, -1.0)
 
-        now = _cars_driving_into(cars, ego) if standing else set()
+        now = _who(cars, ego, driving_into, NEAR_CAR_M) if standing else set()
         self.held_cars = _apply(now, self.held_cars, cars.ids, hold, release)
         now = _who(cyclists, ego, riding_into) if standing else set()
         kept = _apply(now, set(self.held_cyclists), cyclists.ids, hold, release)
@@ -193,28 +193,18 @@ class Courtesy:
         return removals
 
 
-def _who(movers: Movers, ego: tuple[float, float, float, float, float, float],
-         test: Callable[..., np.ndarray]) -> set[str]:
+def _who(movers: Movers | Cars, ego: tuple[float, float, float, float, float, float],
+         test: Callable[..., np.ndarray], near_m: float = NEAR_M) -> set[str]:
+    """Who among ``movers`` within ``near_m`` of the ego's centre would move into it: ``test``
+    (:func:`walking_into`, :func:`riding_into`, :func:`driving_into`) on their columns."""
     ego_x, ego_y, ego_heading, _, length, width = ego
     if not len(movers.ids):
         return set()
-    near = (np.hypot(np.asarray(movers.x) - ego_x, np.asarray(movers.y) - ego_y) < NEAR_M).nonzero()[0]
+    near = (np.hypot(np.asarray(movers.x) - ego_x, np.asarray(movers.y) - ego_y) < near_m).nonzero()[0]
     if not len(near):
         return set()
-    into = test(ego_x, ego_y, ego_heading, length, width, np.asarray(movers.x)[near], np.asarray(movers.y)[near],
-                np.asarray(movers.heading)[near], np.asarray(movers.speed)[near])
+    into = test(ego_x, ego_y, ego_heading, length, width, *(np.asarray(c)[near] for c in movers[1:]))
     return {str(movers.ids[r]) for r in near[into]}
-
-
-def _cars_driving_into(cars: Cars, ego: tuple[float, float, float, float, float, float]) -> set[str]:
-    ego_x, ego_y, ego_heading, _, length, width = ego
-    if not len(cars.ids):
-        return set()
-    near = (np.hypot(np.asarray(cars.x) - ego_x, np.asarray(cars.y) - ego_y) < NEAR_CAR_M).nonzero()[0]
-    if not len(near):
-        return set()
-    into = driving_into(ego_x, ego_y, ego_heading, length, width, *(np.asarray(a)[near] for a in cars[1:]))
-    return {str(cars.ids[r]) for r in near[into]}
 
 
 def _apply(now: set[str], held: set[str], present_ids: np.ndarray,

@@ -157,6 +157,7 @@ class World:
         self.episode_seed: int | None = None
         self.sumo_driver: SumoDriver | None = None  # set by reset(): SUMO drives the ego
         self.events: list[dict[str, object]] = []  # the world's own events of the episode
+        self._clearing_links: dict[str, frozenset[int]] | None = None  # sim/clearing.py, read at the first reset
         self._truth: GroundTruth | None = None  # the true state of the last step (World.truth)
 
     # --- set-up ----------------------------------------------------------------------------
@@ -214,7 +215,8 @@ class World:
         self._noise_rng = np.random.default_rng(noise_seq)
         self._gridlocks = GridlockBreaker(self.junction, cfg.gridlock_stand_s)
         self._clearing = JunctionClearing(self.session, self.program.tl_id, enabled=cfg.junction_clearing,
-                                          exempt=frozenset({EGO_ID}))
+                                          links=self._clearing_links, exempt=frozenset({EGO_ID}))
+        self._clearing_links = self._clearing.links  # the net's: read once, kept for the next reset
         self._courtesy = Courtesy(cfg.standing_ego_courtesy)
         self._look_ahead = LookAhead(EGO_ID, sumo_driver is not None and sumo_driver.look_ahead)
         for _ in range(int(round(cfg.warmup_s / SIM_STEP_S))):
