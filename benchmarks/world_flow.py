@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/world_flow.py [--runs 200] [--base-seed 20261206] \
         [--policy sumo --policy rule] [--scenario scenarios/nominal/c_three_lane-left.yaml ...] \
-        [--flow-window 900] [--workers 2] [--json OUT.json]
+        [--flow-window 900] [--per-lane] [--workers 2] [--json OUT.json]
 
 Three measurements of the world as built (sim/gridlock.py, the signal program of
 intersections/build.py, the demand of sim/traffic.py), on seeds drawn from ``--base-seed`` (not the
@@ -14,7 +14,9 @@ scenarios' own base seed 0, so that nothing here was tuned on the seeds it repor
    behind a participant that barred every candidate path the whole episode: sim/blocking.py)
    and the participants the gridlock breaker removed per episode;
 2. per intersection: the flow that crossed the junction per entrance lane and hour, per kind,
-   against the demand (sim/flow.py), over ``--flow-window`` seconds after the warm-up;
+   against the demand (sim/flow.py), over ``--flow-window`` seconds after the warm-up; with
+   ``--per-lane``, each entrance lane's demand, flow, green and queues (sim/lane_flow.py), which
+   tell a lane held at its head from one whose green cannot carry its demand;
 3. targets: SUMO's driver ≥ 98 % on every nominal scenario with 0 collisions; blocked runs ≤ 1
    per scenario; the rule controller ≥ 90 % on the nominal left turn of c_three_lane and ≥ 95 % on
    every nominal straight and right turn; every flow within 10 % of its demand.
@@ -71,18 +73,32 @@ def _episodes(task: tuple[str, str, list[int]]) -> list[dict[str, object]]:
     return out
 
 
-def _flow(task: tuple[str, int, float]) -> dict[str, object]:
-    path, seed, window = task
+def _flow(task: tuple[str, int, float, bool]) -> dict[str, object]:
+    path, seed, window, per_lane = task
     spec = load_scenario(Path(path))
     cfg = to_world_config(spec, Path(path).parent)
     junction = read_junction(cfg.net_file, cfg.junction_id)
     with tempfile.TemporaryDirectory() as tmp:
         report = measure_flow(junction, cfg.demand, Path(tmp), seed=seed, warmup_s=cfg.warmup_s,
                               window_s=window, gridlock_stand_s=cfg.gridlock_stand_s,
-                              junction_clearing=cfg.junction_clearing)
+                              junction_clearing=cfg.junction_clearing, per_lane=per_lane)
     return {"intersection": str(spec.intersection), "kinds": [
         {"kind": k.kind, "demand": k.demand_per_lane_h, "crossed": k.crossed_per_lane_h,
-         "removed": k.removed} for k in report.kinds]}
+         "removed": k.removed} for k in report.kinds],
+        "lanes": [{"lane": f.lane, "turns": list(f.turns), "demand": f.demand_h, "crossed": f.crossed_h,
+                   "green_share": f.green_share, "queued_discharge": f.queued_discharge_h,
+                   "greens": f.greens, "greens_ending_queued": f.greens_ending_queued}
+                  for f in report.lanes]}
+
+
+def _print_lanes(flow: dict[str, object]) -> None:
+    """One intersection's per-lane table (sim/lane_flow.py)."""
+    print(f"  {flow['intersection']}: {'lane':14} {'turns':22} {'demand':>6} {'crossed':>7} {'green':>5} "
+          f"{'queued discharge':>16} {'greens leaving a queue':>22}")
+    for f in flow["lanes"]:  # type: ignore[attr-defined]
+        print(f"  {'':{len(str(flow['intersection']))}}  {f['lane']:14} {','.join(f['turns']):22} "
+              f"{f['demand']:6.0f} {f['crossed']:7.0f} {f['green_share']:5.2f} {f['queued_discharge']:16.0f} "
+              f"{f['greens_ending_queued']:>15} of {f['greens']:<3}")
 
 
 def _report(path: str, policy: str, eps: list[dict[str, object]]) -> bool:
@@ -114,6 +130,8 @@ def main() -> int:
     parser.add_argument("--policy", action="append", default=[])
     parser.add_argument("--scenario", action="append", type=Path, default=[])
     parser.add_argument("--flow-window", type=float, default=900.0, help="[s]; 0 skips the flow")
+    parser.add_argument("--per-lane", action="store_true",
+                        help="also each entrance lane's demand, flow, green and queues (veh/h)")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     parser.add_argument("--json", type=Path)
     args = parser.parse_args()
@@ -145,7 +163,8 @@ def main() -> int:
             by_intersection = {}
             for path in scenarios:
                 by_intersection.setdefault(str(load_scenario(path).intersection), path)
-            flow_tasks = [(str(p), args.base_seed, args.flow_window) for p in by_intersection.values()]
+            flow_tasks = [(str(p), args.base_seed, args.flow_window, args.per_lane)
+                          for p in by_intersection.values()]
             flows = list(pool.map(_flow, flow_tasks))
     if flows:
         print(f"\nflow over {args.flow_window:g} s after the warm-up, per entrance lane and hour "
@@ -159,6 +178,12 @@ def main() -> int:
                 if k["demand"] and abs(ratio - 1.0) > 0.10:
                     ok = False
             print(f"  {f['intersection']:20} " + "; ".join(cells))
+        if args.per_lane:
+            print("\nper entrance lane (vehicles per hour; green: share of the window its main movement had it; "
+                  "queued discharge: per hour of green while 2 or more stood on it; greens leaving "
+                  "3 or more standing)")
+            for f in flows:
+                _print_lanes(f)
     nominal = any(Path(path).parent.name == "nominal" for path in scenarios)
     checked = [text for applies, text in (
         (SUMO_POLICY in policies and nominal, "SUMO's driver >= 98 % of every nominal scenario, no collision"),

@@ -5,7 +5,9 @@ it only by removing participants. :func:`measure_flow` runs the warm world witho
 counts, per kind, the participants that crossed the junction and left the network (SUMO's arrivals:
 every route of the demand ends past the junction) over a window after the warm-up, against the
 departures the demand plan scheduled over the same window, both per entrance lane and hour, and
-the participants the gridlock breaker removed.
+the participants the gridlock breaker removed; with ``per_lane``, every entrance lane's own
+figures too (:mod:`crossroads.sim.lane_flow`: where the rest of the demand waits, and whether its
+green could carry it).
 """
 
 from __future__ import annotations
@@ -18,8 +20,9 @@ from crossroads.constants import SIM_STEP_S
 from crossroads.network.road import Junction
 from crossroads.sim.clearing import JunctionClearing
 from crossroads.sim.gridlock import GridlockBreaker
+from crossroads.sim.lane_flow import LaneFlow, LaneFlowCounter
 from crossroads.sim.sumo import SumoSession
-from crossroads.sim.traffic import TrafficDemand, build_plan, write_plan
+from crossroads.sim.traffic import Departure, TrafficDemand, build_plan, write_plan
 
 KINDS = ("vehicle", "cyclist", "pedestrian")
 
@@ -44,6 +47,7 @@ class FlowReport:
     window_s: float
     entrance_lanes: int
     kinds: tuple[KindFlow, ...]
+    lanes: tuple[LaneFlow, ...] = ()  # per entrance lane, when measured (``per_lane``)
 
     def of(self, kind: str) -> KindFlow:
         return next(k for k in self.kinds if k.kind == kind)
@@ -51,10 +55,11 @@ class FlowReport:
 
 def measure_flow(junction: Junction, demand: TrafficDemand, work_dir: Path, *, seed: int,
                  warmup_s: float, window_s: float, gridlock_stand_s: float | None,
-                 junction_clearing: bool = True) -> FlowReport:
+                 junction_clearing: bool = True, per_lane: bool = False) -> FlowReport:
     """Run the world of ``junction`` with ``demand`` (seeded) for ``warmup_s`` + ``window_s`` [s],
     no ego, and measure its flow over the window (see the module's docstring); the gridlock
-    breaker and the junction clearing (sim/clearing.py) as the world's."""
+    breaker and the junction clearing (sim/clearing.py) as the world's; ``per_lane`` adds each
+    entrance lane's figures (:class:`LaneFlow`)."""
     plan = build_plan(junction, demand, seed=seed, duration_s=warmup_s + window_s)
     routes = write_plan(plan, work_dir / "flow.rou.xml")
     kind_of = {d.id: d.kind for d in plan.departures}
@@ -64,10 +69,13 @@ def measure_flow(junction: Junction, demand: TrafficDemand, work_dir: Path, *, s
     breaker = GridlockBreaker(junction, gridlock_stand_s)
     with SumoSession().start(junction.net_file, [routes], seed=seed) as session:
         clearing = JunctionClearing(session, junction.tl_id, enabled=junction_clearing)
+        lane_counter = LaneFlowCounter(junction, warmup_s) if per_lane else None
         alive: set[str] = set()
         for _ in range(int(round((warmup_s + window_s) / SIM_STEP_S))):
             session.step()
             clearing.update(session)
+            if lane_counter is not None:
+                lane_counter.update(session, SIM_STEP_S)
             counting = session.time_s > warmup_s
             gone = alive  # who was there before this step and is not any more: arrived or removed
             for r in breaker.update(session):
@@ -80,6 +88,21 @@ def measure_flow(junction: Junction, demand: TrafficDemand, work_dir: Path, *, s
                     crossed[kind_of.get(pid, "vehicle")] += 1
     lanes = sum(len(a.entrance_lanes) for a in junction.approaches)
     per_lane_h = 3600.0 / window_s / max(lanes, 1)
+    lane_flows: tuple[LaneFlow, ...] = ()
+    if lane_counter is not None:
+        entrance = {a.incoming_edge for a in junction.approaches}
+        lane_demand = Counter(f"{d.from_edge}_{d.depart_lane}" for d in plan.departures
+                              if d.kind == "vehicle" and d.from_edge in entrance and d.depart_lane is not None
+                              and warmup_s <= d.depart_s < warmup_s + window_s)
+        known = frozenset(lane.id for a in junction.approaches for lane in a.entrance_lanes
+                          if _departs_there(plan.departures, a.incoming_edge))
+        lane_flows = lane_counter.report(window_s, lane_demand, known)
     return FlowReport(window_s, lanes, tuple(
         KindFlow(kind, scheduled[kind] * per_lane_h, crossed[kind] * per_lane_h, removed[kind])
-        for kind in KINDS))
+        for kind in KINDS), lane_flows)
+
+
+def _departs_there(departures: tuple[Departure, ...], edge: str) -> bool:
+    """Whether the plan's vehicles of the approach on ``edge`` depart on that edge itself (the
+    catalogue's nets), so its lanes' demand is known; on a real net they may start upstream."""
+    return any(d.kind == "vehicle" and d.from_edge == edge for d in departures)

@@ -874,6 +874,16 @@ class SumoSession:
         return tuple(str(link[0]) for link in libsumo.lane.getLinks(lane_id))
 
     @_sumo_errors
+    def lane_vehicle_ids(self, lane_id: str) -> tuple[str, ...]:
+        """The vehicles (cars and bicycles) on ``lane_id`` after the last step."""
+        return tuple(libsumo.lane.getLastStepVehicleIDs(lane_id))
+
+    @_sumo_errors
+    def lane_halting(self, lane_id: str) -> int:
+        """How many vehicles on ``lane_id`` stood (below 0.1 m/s) in the last step."""
+        return int(libsumo.lane.getLastStepHaltingNumber(lane_id))
+
+    @_sumo_errors
     def lane_max_speed(self, lane_id: str) -> float:
         return libsumo.lane.getMaxSpeed(lane_id)
 
