@@ -92,6 +92,7 @@ class SumoDriver:
 SPEED_MODE_DEFAULT = 31  # all checks on
 SPEED_MODE_IGNORE_ALL = 0  # no safe speed, no limits, no lights, no junctions
 SPEED_MODE_CLEARING = 23  # all checks but the right of way at intersections (bit 3)
+SPEED_MODE_CLEARING_THROUGH = 55  # and disregarding foes already inside the junction (bit 5)
 
 # moveToXY keepRoute values (libsumo docstring of vehicle.moveToXY):
 KEEP_ROUTE_ON_ROUTE = 1  # map onto the closest lane of the vehicle's own route (incl. internal lanes)
@@ -758,6 +759,11 @@ class SumoSession:
         return libsumo.vehicle.getLaneID(vehicle_id)
 
     @_sumo_errors
+    def vehicle_lane_position(self, vehicle_id: str) -> float:
+        """[m] of its front bumper along its lane."""
+        return libsumo.vehicle.getLanePosition(vehicle_id)
+
+    @_sumo_errors
     def vehicle_class(self, vehicle_id: str) -> str:
         return libsumo.vehicle.getVehicleClass(vehicle_id)
 
@@ -872,6 +878,16 @@ class SumoSession:
     def lane_successors(self, lane_id: str) -> tuple[str, ...]:
         """The lanes the links of ``lane_id`` lead to (internal lanes included)."""
         return tuple(str(link[0]) for link in libsumo.lane.getLinks(lane_id))
+
+    @_sumo_errors
+    def lane_next(self, lane_id: str) -> str | None:
+        """The lane a vehicle on ``lane_id`` drives onto next along its first link: the link's
+        internal lane where it has one, else the lane it leads to; None without a link. For an
+        internal lane, which has one link, its way on."""
+        links = libsumo.lane.getLinks(lane_id)
+        if not links:
+            return None
+        return str(links[0][4] or links[0][0])
 
     @_sumo_errors
     def lane_vehicle_ids(self, lane_id: str) -> tuple[str, ...]:

@@ -359,7 +359,8 @@ class World:
         if self._start_zone_modes and self.time_s >= START_ZONE_S - 1e-9:
             self._release_start_zone()
         self.events.extend(r.to_event(self.time_s) for r in self._gridlocks.update(self.session))
-        self._clearing.update(self.session)
+        x, y, speed, _, heading = self.ego[:5].tolist()
+        self._clearing.update(self.session, (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M))
         snap = self.session.snapshot()
         around = self._around(snap)
         obs = self._observe(snap, around)
