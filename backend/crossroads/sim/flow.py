@@ -69,7 +69,8 @@ def measure_flow(junction: Junction, demand: TrafficDemand, work_dir: Path, *, s
     breaker = GridlockBreaker(junction, gridlock_stand_s)
     with SumoSession().start(junction.net_file, [routes], seed=seed) as session:
         clearing = JunctionClearing(session, junction.tl_id, enabled=junction_clearing)
-        lane_counter = LaneFlowCounter(junction, warmup_s) if per_lane else None
+        lane_counter = (LaneFlowCounter(junction, warmup_s, lambda vid: kind_of.get(vid) == "vehicle")
+                        if per_lane else None)
         alive: set[str] = set()
         for _ in range(int(round((warmup_s + window_s) / SIM_STEP_S))):
             session.step()

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 from crossroads.network.road import Junction
@@ -90,10 +90,14 @@ def lane_flows(lanes: Iterable[tuple[str, tuple[str, ...]]], *, window_s: float,
 
 class LaneFlowCounter:
     """Counts, step by step, what :func:`lane_flows` needs for every entrance lane of
-    ``junction`` (the light ``junction.tl_id``) from ``window_start_s`` of simulated time on."""
+    ``junction`` (the light ``junction.tl_id``) from ``window_start_s`` of simulated time on.
+    ``counted``: which vehicles count as crossing (the demand's cars, not the cyclists that share
+    a car lane); every vehicle standing on a lane counts in its queue."""
 
-    def __init__(self, junction: Junction, window_start_s: float) -> None:
+    def __init__(self, junction: Junction, window_start_s: float,
+                 counted: Callable[[str], bool] = lambda _vid: True) -> None:
         self.tl_id = junction.tl_id
+        self.counted = counted
         self.window_start_s = window_start_s
         self.links = main_link_indices(junction)
         self.turns = {lane.id: tuple(sorted(a.turns_of(lane.id))) for a in junction.approaches
@@ -113,7 +117,8 @@ class LaneFlowCounter:
         state = session.tl_state(self.tl_id) if self.tl_id else ""
         for lane, indices in self.links.items():
             now = set(session.lane_vehicle_ids(lane))
-            left = len(self._on_lane[lane] - now)  # crossed its stop line (or changed lane: rare at the line)
+            # crossed its stop line (or changed lane: rare at the line)
+            left = sum(1 for vid in self._on_lane[lane] - now if self.counted(vid))
             self._on_lane[lane] = now
             green = bool(indices) and any(state[k] in GREEN for k in indices)
             if counting:

@@ -411,8 +411,10 @@ class World:
         for code in (_PEDESTRIAN, _CYCLIST):
             rows = (snap.kind_code == code).nonzero()[0]
             movers.append(Movers(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows]))
-        rows = np.array([r for r in (snap.kind_code == _VEHICLE).nonzero()[0].tolist()
-                         if (pid := str(snap.ids[r])) != EGO_ID and pid not in self._abnormal_ids], dtype=np.intp)
+        drivers = (snap.kind_code == _VEHICLE) & (snap.ids != EGO_ID)
+        if self._abnormal_ids:
+            drivers &= ~np.isin(snap.ids, list(self._abnormal_ids))
+        rows = drivers.nonzero()[0]
         cars = Cars(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows],
                     snap.length[rows], snap.width[rows])
         removals = self._courtesy.update(self.session, movers[0], movers[1],
