@@ -32,6 +32,7 @@ import tempfile
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
+from typing import Any
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
@@ -91,11 +92,11 @@ def _flow(task: tuple[str, int, float, bool]) -> dict[str, object]:
                   for f in report.lanes]}
 
 
-def _print_lanes(flow: dict[str, object]) -> None:
+def _print_lanes(flow: dict[str, Any]) -> None:
     """One intersection's per-lane table (sim/lane_flow.py)."""
     print(f"  {flow['intersection']}: {'lane':14} {'turns':22} {'demand':>6} {'crossed':>7} {'green':>5} "
           f"{'queued discharge':>16} {'greens leaving a queue':>22}")
-    for f in flow["lanes"]:  # type: ignore[attr-defined]
+    for f in flow["lanes"]:
         print(f"  {'':{len(str(flow['intersection']))}}  {f['lane']:14} {','.join(f['turns']):22} "
               f"{f['demand']:6.0f} {f['crossed']:7.0f} {f['green_share']:5.2f} {f['queued_discharge']:16.0f} "
               f"{f['greens_ending_queued']:>15} of {f['greens']:<3}")

@@ -85,7 +85,7 @@ print(json.dumps([result.outcome, result.detail]))
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("scenario", "seed", "hit"), [
-    ("e_irregular_oblique-left", "196642405", "hit pedestrian"),
+    ("e_irregular_oblique-left", "808738376", "hit pedestrian"),
     ("a_single_lane-straight", "179128172", "hit vehicle"),
 ])
 def test_sumo_driver_brakes_for_whoever_is_in_its_way_ahead(scenario: str, seed: str, hit: str) -> None:

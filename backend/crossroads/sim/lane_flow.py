@@ -64,9 +64,10 @@ def main_link_indices(junction: Junction) -> dict[str, tuple[int, ...]]:
     out: dict[str, tuple[int, ...]] = {}
     for approach in junction.approaches:
         for lane in approach.entrance_lanes:
-            conns = [c for c in approach.connections if c.from_lane == lane.id and c.tl_link_index is not None]
-            straight = [c for c in conns if c.turn == "straight"]
-            out[lane.id] = tuple(sorted({c.tl_link_index for c in (straight or conns)}))  # type: ignore[misc]
+            links = [(c.turn, c.tl_link_index) for c in approach.connections
+                     if c.from_lane == lane.id and c.tl_link_index is not None]
+            straight = [index for turn, index in links if turn == "straight"]
+            out[lane.id] = tuple(sorted(set(straight or [index for _, index in links])))
     return out
 
 
