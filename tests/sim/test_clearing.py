@@ -3,12 +3,15 @@ which light, when a vehicle counts as caught, and the rule in SUMO on a scene th
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import libsumo
 import pytest
 
 from crossroads.network.junction import read_junction
+from crossroads.network.road import Junction
 from crossroads.scenario.spec import load_scenario, to_world_config
 import numpy as np
 
@@ -40,16 +43,24 @@ def test_caught_once_its_movement_has_no_green(lane: str, state: str, expected: 
     assert caught(lane, state, {":C_0_0": frozenset({0}), ":C_1_0": frozenset({1})}) is expected
 
 
+@contextmanager
+def _world_without_ego(tmp_path: Path, intersection: str,
+                       plan_s: float) -> Iterator[tuple[SumoSession, Junction, GridlockBreaker]]:
+    """SUMO running the traffic of the nominal scenarios on ``intersection`` (seed 20261206, a
+    demand plan of ``plan_s``), no ego; with the scenarios' gridlock breaker for the caller to step."""
+    cfg = to_world_config(load_scenario(ROOT / f"scenarios/nominal/{intersection}-left.yaml"))
+    junction = read_junction(cfg.net_file, cfg.junction_id)
+    plan = build_plan(junction, cfg.demand, seed=20261206, duration_s=plan_s)
+    routes = write_plan(plan, tmp_path / "r.rou.xml")
+    with SumoSession().start(junction.net_file, [routes], seed=20261206) as session:
+        yield session, junction, GridlockBreaker(junction, cfg.gridlock_stand_s)
+
+
 def _first_car_of_the_outer_lane_at_300_s(tmp_path: Path, clearing: bool) -> str:
     """The world of the nominal scenarios on c_three_lane (seed 20261206, a demand plan of 1200 s,
     the gridlock breaker), no ego: where veh184, the first car of the cross street's outer lane
     from 205 s, is at 300 s, 25 s into its green."""
-    cfg = to_world_config(load_scenario(ROOT / "scenarios/nominal/c_three_lane-left.yaml"))
-    junction = read_junction(cfg.net_file, cfg.junction_id)
-    plan = build_plan(junction, cfg.demand, seed=20261206, duration_s=1200.0)
-    routes = write_plan(plan, tmp_path / "r.rou.xml")
-    breaker = GridlockBreaker(junction, cfg.gridlock_stand_s)
-    with SumoSession().start(junction.net_file, [routes], seed=20261206) as session:
+    with _world_without_ego(tmp_path, "c_three_lane", 1200.0) as (session, junction, breaker):
         rule = JunctionClearing(session, junction.tl_id, enabled=clearing)
         while session.time_s < 300.0 - 1e-9:
             session.step()
@@ -108,12 +119,7 @@ def _when_veh138_enters(tmp_path: Path, through_after_s: float | None) -> float:
     """The world of the nominal scenarios on f_irregular_wide (seed 20261206, a demand plan of
     1000 s, the gridlock breaker), no ego: when veh138, first at the cross street's west_in_3 from
     169 s, leaves that lane."""
-    cfg = to_world_config(load_scenario(ROOT / "scenarios/nominal/f_irregular_wide-left.yaml"))
-    junction = read_junction(cfg.net_file, cfg.junction_id)
-    plan = build_plan(junction, cfg.demand, seed=20261206, duration_s=1000.0)
-    routes = write_plan(plan, tmp_path / "r.rou.xml")
-    breaker = GridlockBreaker(junction, cfg.gridlock_stand_s)
-    with SumoSession().start(junction.net_file, [routes], seed=20261206) as session:
+    with _world_without_ego(tmp_path, "f_irregular_wide", 1000.0) as (session, junction, breaker):
         rule = JunctionClearing(session, junction.tl_id, through_after_s=through_after_s)
         went_first = 0
         while session.time_s < 400.0:

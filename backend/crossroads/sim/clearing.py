@@ -39,17 +39,21 @@ import numpy as np
 
 from crossroads.geometry import FloatArray, distances_to_polyline, sub_polyline
 from crossroads.sim.look_ahead import footprint_points
-from crossroads.sim.sumo import SPEED_MODE_CLEARING, SPEED_MODE_CLEARING_THROUGH, SumoSession
+from crossroads.sim.sumo import (
+    GREEN_LINK_STATES,
+    SPEED_MODE_CLEARING,
+    SPEED_MODE_CLEARING_THROUGH,
+    SumoSession,
+)
 
 CHECK_EVERY_S = 0.5  # [s] how often the rule looks
-GREEN = frozenset("Gg")  # SUMO's green link states (with and without priority)
 THROUGH_AFTER_S = 5.0  # [s] standing caught inside the junction before a clear way lets it go first
 STANDING_MPS = 0.1  # [m/s] below this a vehicle counts as standing (SUMO's halting speed)
 WAY_MARGIN_M = 0.5  # [m] beyond its half width: how far the others' footprints keep from its way
 EXIT_REACH_M = 5.0  # [m] how far into its exit lane its way is looked at
 WAY_TIMES_S = (0.0, 1.0, 2.0)  # [s] the others are looked at now and this far ahead at their speed
 
-# (x, y, heading [rad], speed [m/s], length, width [m]) of a participant the snapshot leaves out (the ego)
+# (x, y, heading [rad], speed [m/s], length, width [m]) of the ego, which the snapshot leaves out
 Pose = tuple[float, float, float, float, float, float]
 
 
@@ -115,7 +119,7 @@ def caught(lane: str, state: str, links: dict[str, frozenset[int]]) -> bool:
     """Whether a vehicle on ``lane`` is inside the junction with no green left for its movement
     in the light's ``state`` string."""
     indices = links.get(lane)
-    return indices is not None and not any(state[k] in GREEN for k in indices)
+    return indices is not None and not any(state[k] in GREEN_LINK_STATES for k in indices)
 
 
 class JunctionClearing:

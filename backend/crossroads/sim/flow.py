@@ -22,7 +22,7 @@ from crossroads.sim.clearing import JunctionClearing
 from crossroads.sim.gridlock import GridlockBreaker
 from crossroads.sim.lane_flow import LaneFlow, LaneFlowCounter
 from crossroads.sim.sumo import SumoSession
-from crossroads.sim.traffic import Departure, TrafficDemand, build_plan, write_plan
+from crossroads.sim.traffic import TrafficDemand, build_plan, write_plan
 
 KINDS = ("vehicle", "cyclist", "pedestrian")
 
@@ -95,15 +95,13 @@ def measure_flow(junction: Junction, demand: TrafficDemand, work_dir: Path, *, s
         lane_demand = Counter(f"{d.from_edge}_{d.depart_lane}" for d in plan.departures
                               if d.kind == "vehicle" and d.from_edge in entrance and d.depart_lane is not None
                               and warmup_s <= d.depart_s < warmup_s + window_s)
-        known = frozenset(lane.id for a in junction.approaches for lane in a.entrance_lanes
-                          if _departs_there(plan.departures, a.incoming_edge))
+        # a lane's demand is known where the approach's cars depart on its own edge (the
+        # catalogue's nets); on a real net they may start upstream of it
+        departing = {d.from_edge for d in plan.departures if d.kind == "vehicle"}
+        known = frozenset(lane.id for a in junction.approaches if a.incoming_edge in departing
+                          for lane in a.entrance_lanes)
         lane_flows = lane_counter.report(window_s, lane_demand, known)
     return FlowReport(window_s, lanes, tuple(
         KindFlow(kind, scheduled[kind] * per_lane_h, crossed[kind] * per_lane_h, removed[kind])
         for kind in KINDS), lane_flows)
 
-
-def _departs_there(departures: tuple[Departure, ...], edge: str) -> bool:
-    """Whether the plan's vehicles of the approach on ``edge`` depart on that edge itself (the
-    catalogue's nets), so its lanes' demand is known; on a real net they may start upstream."""
-    return any(d.kind == "vehicle" and d.from_edge == edge for d in departures)

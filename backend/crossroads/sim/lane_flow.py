@@ -27,11 +27,10 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 
 from crossroads.network.road import Junction
-from crossroads.sim.sumo import SumoSession
+from crossroads.sim.sumo import GREEN_LINK_STATES, SumoSession
 
 QUEUED_HALTING = 2  # vehicles standing on the lane for its green to count as discharging a queue
 OVERSATURATED_HALTING = 3  # vehicles still standing on the lane when its green ends: a queue left behind
-GREEN = frozenset("Gg")  # SUMO's green link states (with and without priority)
 
 
 @dataclass(frozen=True)
@@ -121,7 +120,7 @@ class LaneFlowCounter:
             # crossed its stop line (or changed lane: rare at the line)
             left = sum(1 for vid in self._on_lane[lane] - now if self.counted(vid))
             self._on_lane[lane] = now
-            green = bool(indices) and any(state[k] in GREEN for k in indices)
+            green = bool(indices) and any(state[k] in GREEN_LINK_STATES for k in indices)
             if counting:
                 halting = session.lane_halting(lane)
                 self.crossed[lane] += left

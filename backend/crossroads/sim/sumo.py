@@ -93,6 +93,7 @@ SPEED_MODE_DEFAULT = 31  # all checks on
 SPEED_MODE_IGNORE_ALL = 0  # no safe speed, no limits, no lights, no junctions
 SPEED_MODE_CLEARING = 23  # all checks but the right of way at intersections (bit 3)
 SPEED_MODE_CLEARING_THROUGH = 55  # and disregarding foes already inside the junction (bit 5)
+GREEN_LINK_STATES = frozenset("Gg")  # a link's green in a light's state string (with and without priority)
 
 # moveToXY keepRoute values (libsumo docstring of vehicle.moveToXY):
 KEEP_ROUTE_ON_ROUTE = 1  # map onto the closest lane of the vehicle's own route (incl. internal lanes)

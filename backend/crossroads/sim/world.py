@@ -34,7 +34,7 @@ from crossroads.planning import CandidatePath, plan_candidates
 from crossroads.sim.abnormal import AbnormalTraffic, injected_departures, with_departures
 from crossroads.sim.blocking import BlockedBy, held_whole_episode, nearest_barrier
 from crossroads.sim.config import WorldConfig
-from crossroads.sim.clearing import JunctionClearing
+from crossroads.sim.clearing import JunctionClearing, Pose
 from crossroads.sim.courtesy import Cars, Courtesy, Movers
 from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
@@ -359,8 +359,7 @@ class World:
         if self._start_zone_modes and self.time_s >= START_ZONE_S - 1e-9:
             self._release_start_zone()
         self.events.extend(r.to_event(self.time_s) for r in self._gridlocks.update(self.session))
-        x, y, speed, _, heading = self.ego[:5].tolist()
-        self._clearing.update(self.session, (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M))
+        self._clearing.update(self.session, self._ego_pose())
         snap = self.session.snapshot()
         around = self._around(snap)
         obs = self._observe(snap, around)
@@ -374,6 +373,11 @@ class World:
         if self.outcome is None and self.sumo_driver is not None and self.sumo_driver.clear_junction:
             self._let_sumo_driver_clear(obs.light.light)
         return obs, self.outcome
+
+    def _ego_pose(self) -> Pose:
+        """The ego as the world's rules read it: (x, y, heading [rad], speed [m/s], length, width)."""
+        x, y, speed, _, heading = self.ego[:5].tolist()
+        return x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M
 
     def _let_sumo_driver_clear(self, light: str) -> None:
         """SUMO's driver, inside the junction when its light is no longer green, drives on
@@ -392,9 +396,8 @@ class World:
         held = self._courtesy.held_pedestrians | set(self._courtesy.held_cyclists)
         if held:
             rows = np.array([r for r in rows.tolist() if str(snap.ids[r]) not in held], dtype=np.intp)
-        x, y, speed, _, heading = self.ego[:5].tolist()
         cars = is_vehicle.nonzero()[0]
-        self._look_ahead.update(self.session, (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M),
+        self._look_ahead.update(self.session, self._ego_pose(),
                                 snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows],
                                 0.5 * np.maximum(snap.length[rows], snap.width[rows]),
                                 vehicles=(snap.x[cars], snap.y[cars], snap.heading[cars], snap.speed[cars],
@@ -404,8 +407,8 @@ class World:
         """Pedestrians, cyclists and drivers (not the abnormal ones) about to move into the
         standing ego stop (sim/courtesy.py); a cyclist taken out after a standoff is an episode
         event. Whether anyone was taken out."""
-        x, y, speed, _, heading = self.ego[:5].tolist()
-        if not self._courtesy.may_act(speed):
+        ego = self._ego_pose()
+        if not self._courtesy.may_act(ego[3]):
             return False
         movers = []
         for code in (_PEDESTRIAN, _CYCLIST):
@@ -417,8 +420,7 @@ class World:
         rows = drivers.nonzero()[0]
         cars = Cars(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows],
                     snap.length[rows], snap.width[rows])
-        removals = self._courtesy.update(self.session, movers[0], movers[1],
-                                         (x, y, heading, speed, EGO_LENGTH_M, EGO_WIDTH_M), cars)
+        removals = self._courtesy.update(self.session, movers[0], movers[1], ego, cars)
         self.events.extend(r.to_event(self.time_s) for r in removals)
         return bool(removals)
 
