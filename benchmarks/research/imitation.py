@@ -12,10 +12,11 @@ Z_LIMIT = 3.0  # (choice) labels before tanh are clipped here: tanh(3) = 0.995 o
 
 
 def fit_mean(policy: torch.nn.Module, states: Tensor, z: Tensor, steps: int, lr: float, batch_size: int,
-             generator: torch.Generator, weights: Tensor | None = None) -> float:
+             generator: torch.Generator, weights: Tensor | None = None, squashed: bool = False) -> float:
     """Adam on the MSE between the policy's mean before tanh on ``states`` and the labels ``z``
-    (both before tanh); batches drawn uniformly, or in proportion to ``weights``. The mean loss of
-    the last ``LOSS_WINDOW`` steps."""
+    (both before tanh), or with ``squashed`` between their tanh (the actions as shares of their
+    ranges: a saturated mean beyond a saturated label costs nothing); batches drawn uniformly, or
+    in proportion to ``weights``. The mean loss of the last ``LOSS_WINDOW`` steps."""
     optimiser = torch.optim.Adam(policy.parameters(), lr=lr)
     policy.train()
     size = min(batch_size, len(states))
@@ -24,7 +25,8 @@ def fit_mean(policy: torch.nn.Module, states: Tensor, z: Tensor, steps: int, lr:
         rows = (torch.randint(len(states), (size,), generator=generator) if weights is None
                 else torch.multinomial(weights, size, replacement=True, generator=generator))
         mean, _ = policy.distribution(states[rows])
-        loss = torch.nn.functional.mse_loss(mean, z[rows])
+        loss = (torch.nn.functional.mse_loss(torch.tanh(mean), torch.tanh(z[rows])) if squashed
+                else torch.nn.functional.mse_loss(mean, z[rows]))
         optimiser.zero_grad()
         loss.backward()
         optimiser.step()
