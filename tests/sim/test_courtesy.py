@@ -3,6 +3,9 @@ standoff, and the rule in SUMO."""
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -91,7 +94,7 @@ def test_cars_held_while_the_ego_stands_and_released_when_it_drives() -> None:
     for _ in range(2):
         rule.update(session, nobody, nobody, (0.0, 0.0, 0.0, 0.0, 4.8, 2.0), cars)  # type: ignore[arg-type]
     assert session.calls == [("hold", "behind")] and rule.held_cars == {"behind"}
-    rule.update(session, nobody, nobody, (0.0, 0.0, 0.0, 3.0, 4.8, 2.0), cars)  # type: ignore[arg-type]
+    rule.update(session, nobody, nobody, (30.0, 0.0, 0.0, 3.0, 4.8, 2.0), cars)  # type: ignore[arg-type]
     assert session.calls == [("hold", "behind"), ("release", "behind")] and not rule.held_cars
 
 
@@ -123,23 +126,49 @@ def _one(pid: str, y: float, speed: float) -> Movers:
 NOBODY = Movers(np.array([]), np.array([]), np.array([]), np.array([]), np.array([]))
 
 
-def _update(rule: Courtesy, session: _Recorder, ego_speed: float, *, cyclist: bool = False) -> list:
-    mover = _one("b" if cyclist else "p", 2.0, 1.3)
+def _update(rule: Courtesy, session: _Recorder, ego_speed: float, *, cyclist: bool = False, ego_x: float = 0.0,
+            mover_speed: float = 1.3) -> list:
+    mover = _one("b" if cyclist else "p", 2.0, mover_speed)
     return rule.update(session, NOBODY if cyclist else mover, mover if cyclist else NOBODY,  # type: ignore[arg-type]
-                       (0.0, 0.0, 0.0, ego_speed, 4.8, 2.0))
+                       (ego_x, 0.0, 0.0, ego_speed, 4.8, 2.0))
 
 
 @pytest.mark.parametrize("cyclist", [False, True])
-def test_held_while_the_ego_stands_and_released_when_it_drives(cyclist: bool) -> None:
+def test_held_while_the_ego_stands_and_released_once_it_has_driven_on(cyclist: bool) -> None:
     rule, session = Courtesy(), _Recorder()
     who = "b" if cyclist else "p"
     _update(rule, session, 0.0, cyclist=cyclist)
     _update(rule, session, 0.0, cyclist=cyclist)  # still held: no second call
     assert session.calls == [("hold", who)]
     assert rule.may_act(5.0)  # someone is held: the rule must look even at speed
-    _update(rule, session, 5.0, cyclist=cyclist)
+    # the ego pulls away, its side still across the held one's way (standing now: 1 m ahead)
+    _update(rule, session, 1.0, cyclist=cyclist, ego_x=1.0, mover_speed=0.0)
+    assert session.calls == [("hold", who)]
+    _update(rule, session, 5.0, cyclist=cyclist, ego_x=6.0, mover_speed=0.0)  # past it
     assert session.calls == [("hold", who), ("release", who)]
     assert not rule.held_pedestrians and not rule.held_cyclists and not rule.may_act(5.0)
+
+
+def test_a_moving_ego_holds_no_one_in_its_way_ahead() -> None:
+    """In front of a moving ego a pedestrian or cyclist is in its way: the ego must stop for it."""
+    for cyclist in (False, True):
+        rule, session = Courtesy(), _Recorder()
+        _update(rule, session, 3.0, cyclist=cyclist, ego_x=-2.5)  # crossing 0.1 m ahead of its bumper
+        assert session.calls == [] and not rule.held_pedestrians and not rule.held_cyclists
+        _update(rule, session, 0.0, cyclist=cyclist, ego_x=-2.5)  # had it stood, they would have stopped
+        assert session.calls == [("hold", "b" if cyclist else "p")]
+
+
+def test_a_pedestrian_about_to_walk_into_a_moving_egos_side_stops() -> None:
+    rule, session = Courtesy(), _Recorder()
+    _update(rule, session, 3.0)  # walking at the middle of its side
+    assert session.calls == [("hold", "p")]
+    rule, session = Courtesy(), _Recorder()
+    rule.watch_sides(session, _one("p", 2.0, 1.3), (0.0, 0.0, 0.0, 3.0, 4.8, 2.0))  # type: ignore[arg-type]
+    assert session.calls == [("hold", "p")] and rule.held_pedestrians == {"p"}
+    rule, session = Courtesy(), _Recorder()
+    _update(rule, session, 3.0, cyclist=True)  # a cyclist riding into its side: the ego's turn across it
+    assert session.calls == []
 
 
 def test_a_cyclist_held_too_long_goes_round_the_car() -> None:
@@ -205,3 +234,39 @@ def test_after_a_cyclist_goes_round_the_car_the_observation_reads_no_one_gone() 
             world.truth.participants.lane_id  # noqa: B018 - reads every participant's lane in SUMO
         removed = [e for e in world.events if e["event"] == "gridlock_removed" and e["value"]["id"].startswith("bike")]
     assert removed and outcome.kind == "passed"
+
+
+_ONE_EPISODE = """
+import json, sys
+from pathlib import Path
+import crossroads.sim.courtesy as courtesy
+from crossroads.evaluation.episode import run_episode
+from crossroads.evaluation.sumo_driver import SumoDriverPolicy
+from crossroads.scenario.spec import load_scenario, to_world_config
+from crossroads.sim.world import World
+path, seed, keep = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3] == "on"
+if not keep:  # the rule before: those held go the moment the ego moves, and it holds no one new
+    courtesy._only = lambda movers, ids: type(movers)(*(c[:0] for c in movers))
+    courtesy.walking_into_side = lambda *args: courtesy.walking_into(*args) & False
+with World(to_world_config(load_scenario(path), path.parent)) as world:
+    result = run_episode(world, SumoDriverPolicy(), seed=seed)
+print(json.dumps([result.outcome, result.detail]))
+"""
+
+
+@pytest.mark.slow
+def test_a_pedestrian_held_beside_the_ego_does_not_walk_into_it_as_it_pulls_away() -> None:
+    """The nominal left turn of e_irregular_oblique, run 1311414304 of benchmarks/world_flow.py's
+    base seed, SUMO's driver: the car ahead of the standing ego is taken out by the gridlock breaker
+    and the ego starts; a pedestrian held 0.9 m from its front corner, released the moment the ego
+    moved, walked into it. Kept held until the ego has passed, it does not. ("off": the rule before,
+    which held no one for a moving ego.) Fresh processes, as ``crossroads run`` (SUMO's result can
+    depend on what the process ran before)."""
+    path = Path(__file__).resolve().parents[2] / "scenarios/nominal/e_irregular_oblique-left.yaml"
+    outcomes = {}
+    for mode in ("off", "on"):
+        done = subprocess.run([sys.executable, "-c", _ONE_EPISODE, str(path), "1311414304", mode],
+                              capture_output=True, text=True, timeout=300, check=True)
+        outcomes[mode] = json.loads(done.stdout.strip().splitlines()[-1])
+    assert outcomes["off"] == ["collision", "hit pedestrian ped4"], outcomes
+    assert outcomes["on"][0] != "collision", outcomes

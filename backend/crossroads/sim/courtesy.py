@@ -20,7 +20,17 @@ time. A cyclist held :data:`CYCLIST_STANDOFF_S` while the ego still stands goes 
 is taken out of the simulation, an episode event like the gridlock breaker's — held short of a car
 standing across the bike lane, it stands where that car waits to go, and the two would wait on
 each other (tried: SUMO's driver then passed only once the gridlock breaker took the cyclist out,
-after 138–159 s). A moving ego gets no courtesy: whoever it drives into is its collision.
+after 138–159 s).
+
+A moving ego: whoever it drives into is its collision, so it holds no one new, with one exception,
+and whoever was held for it stays held, the ego moving or not, as long as its way still comes into
+the ego. The exception: a pedestrian about to walk into the side or rear of the moving ego (its
+footprint but the front :data:`SIDE_FRONT_EXCLUDED_M`) stops too. Both were seen with SUMO's driver
+on ``e_irregular_oblique``'s left turn (base seed 20261206), the car ahead of the standing ego taken
+out by the gridlock breaker and the ego starting: a pedestrian held 0.9 m from its front corner,
+released the moment the ego moved, walked into it 0.5 s later (seed 1311414304), and one walking
+the crossing towards the ego's side walked into its rear quarter as the ego pulled away at 4 m/s
+(seed 2084520041). No one steps into a car pulling away, nor into the side of one passing.
 
 Drivers too: a car (not an abnormal one, which the scenario makes reckless on purpose) whose way
 ahead, :data:`LOOKAHEAD_S` at its speed plus its braking distance from its front bumper, would
@@ -36,7 +46,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import NamedTuple, TypeVar
 
 import numpy as np
 
@@ -56,6 +66,7 @@ CAR_SPARE_M = 0.2  # [m] kept between a held car's side and the ego, beyond half
 NEAR_CAR_M = 40.0  # [m] no car farther from the ego's centre is checked (14 m/s: 36 m reach)
 _SAMPLES = np.linspace(0.0, 1.0, 8)  # points along the way ahead checked against the footprint
 NEAR_M = 8.0  # [m] nobody farther from the ego's centre is checked
+SIDE_FRONT_EXCLUDED_M = 0.5  # [m] a moving ego's front part where a pedestrian walking in is its collision
 
 
 class Movers(NamedTuple):
@@ -83,11 +94,12 @@ def car_reach(speed: FloatArray) -> FloatArray:
 
 def moving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
                 x: FloatArray, y: FloatArray, heading: FloatArray, reach: FloatArray,
-                margin_m: float | FloatArray) -> np.ndarray:
+                margin_m: float | FloatArray, front_m: float | None = None) -> np.ndarray:
     """Which of the movers at ``x``, ``y`` heading ``heading`` would, within ``reach`` [m] (at least
     :data:`LOOKAHEAD_MIN_M`), come into the ego's footprint widened by ``margin_m`` (one for all,
     or one each) — and are not in it already (one already touching it is the judge's business,
-    not this rule's)."""
+    not this rule's). With ``front_m``, only the part of that footprint at most ``front_m`` ahead
+    of the ego's centre counts (:func:`walking_into_side`)."""
     reach = np.maximum(np.asarray(reach, dtype=float), LOOKAHEAD_MIN_M)
     cos_e, sin_e = math.cos(ego_heading), math.sin(ego_heading)
     margin = np.broadcast_to(np.asarray(margin_m, dtype=float), reach.shape)[:, None]
@@ -98,7 +110,8 @@ def moving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: floa
     dx, dy = px - ego_x, py - ego_y
     along = dx * cos_e + dy * sin_e
     across = -dx * sin_e + dy * cos_e
-    inside = (np.abs(along) <= half_l) & (np.abs(across) <= half_w)
+    ahead = half_l if front_m is None else np.minimum(half_l, front_m)
+    inside = (along >= -half_l) & (along <= ahead) & (np.abs(across) <= half_w)
     return inside[:, 1:].any(axis=1) & ~inside[:, 0]
 
 
@@ -107,6 +120,16 @@ def walking_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: flo
     """:func:`moving_into` for pedestrians: :data:`LOOKAHEAD_S` at their speed."""
     return moving_into(ego_x, ego_y, ego_heading, ego_length, ego_width, x, y, heading,
                        np.asarray(speed, dtype=float) * LOOKAHEAD_S, PEDESTRIAN_MARGIN_M)
+
+
+def walking_into_side(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
+                      x: FloatArray, y: FloatArray, heading: FloatArray, speed: FloatArray) -> np.ndarray:
+    """:func:`walking_into` for a moving ego: into its sides or rear only, the front
+    :data:`SIDE_FRONT_EXCLUDED_M` of the car left out (a pedestrian there is in the ego's way,
+    and the ego must stop for it)."""
+    return moving_into(ego_x, ego_y, ego_heading, ego_length, ego_width, x, y, heading,
+                       np.asarray(speed, dtype=float) * LOOKAHEAD_S, PEDESTRIAN_MARGIN_M,
+                       front_m=ego_length / 2.0 - SIDE_FRONT_EXCLUDED_M)
 
 
 def riding_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
@@ -141,6 +164,7 @@ class Cars(NamedTuple):
 
 
 NO_CARS = Cars(*(np.array([]) for _ in range(7)))
+MoversT = TypeVar("MoversT", Movers, Cars)
 
 
 class Courtesy:
@@ -155,9 +179,20 @@ class Courtesy:
         self.held_cars: set[str] = set()
 
     def may_act(self, ego_speed: float) -> bool:
-        """Whether :meth:`update` can change anything: the ego stands, or someone is held."""
+        """Whether :meth:`update` can change anything beyond :meth:`watch_sides`: the ego stands, or
+        someone is held."""
         return self.enabled and (ego_speed < EGO_STANDING_MPS
                                  or bool(self.held_pedestrians or self.held_cyclists or self.held_cars))
+
+    def watch_sides(self, session: SumoSession, pedestrians: Movers,
+                    ego: tuple[float, float, float, float, float, float]) -> None:
+        """:meth:`update` while the ego moves and no one is held (``may_act`` False): only
+        pedestrians about to walk into the ego's side or rear can be held."""
+        if self.enabled:
+            now = _who(pedestrians, ego, walking_into_side)
+            if now:
+                self.held_pedestrians = _apply(now, self.held_pedestrians, pedestrians.ids,
+                                               session.hold_person, session.release_person)
 
     def update(self, session: SumoSession, pedestrians: Movers, cyclists: Movers,
                ego: tuple[float, float, float, float, float, float], cars: Cars = NO_CARS) -> list[Removal]:
@@ -168,7 +203,11 @@ class Courtesy:
         if not self.enabled:
             return []
         standing = ego[3] < EGO_STANDING_MPS
-        now = _who(pedestrians, ego, walking_into) if standing else set()
+        # a moving ego holds no one new but pedestrians about to walk into its sides; whoever it
+        # held stays until its way is clear of the ego
+        now = (_who(pedestrians, ego, walking_into) if standing
+               else _who(pedestrians, ego, walking_into_side) | _who(_only(pedestrians, self.held_pedestrians), ego,
+                                                                     walking_into))
         self.held_pedestrians = _apply(now, self.held_pedestrians, pedestrians.ids,
                                        session.hold_person, session.release_person)
 
@@ -178,9 +217,9 @@ class Courtesy:
         def release(vid: str) -> None:
             session.set_speed(vid, -1.0)
 
-        now = _who(cars, ego, driving_into, NEAR_CAR_M) if standing else set()
+        now = _who(cars if standing else _only(cars, self.held_cars), ego, driving_into, NEAR_CAR_M)
         self.held_cars = _apply(now, self.held_cars, cars.ids, hold, release)
-        now = _who(cyclists, ego, riding_into) if standing else set()
+        now = _who(cyclists if standing else _only(cyclists, set(self.held_cyclists)), ego, riding_into)
         kept = _apply(now, set(self.held_cyclists), cyclists.ids, hold, release)
         t = session.time_s
         self.held_cyclists = {vid: self.held_cyclists.get(vid, t) for vid in kept}
@@ -205,6 +244,14 @@ def _who(movers: Movers | Cars, ego: tuple[float, float, float, float, float, fl
         return set()
     into = test(ego_x, ego_y, ego_heading, length, width, *(np.asarray(c)[near] for c in movers[1:]))
     return {str(movers.ids[r]) for r in near[into]}
+
+
+def _only(movers: MoversT, ids: set[str]) -> MoversT:
+    """The rows of ``movers`` whose ids are in ``ids``."""
+    if not ids or not len(movers.ids):
+        return type(movers)(*(np.asarray(c)[:0] for c in movers))
+    rows = np.isin(movers.ids.astype(str), list(ids)).nonzero()[0]
+    return type(movers)(*(np.asarray(c)[rows] for c in movers))
 
 
 def _apply(now: set[str], held: set[str], present_ids: np.ndarray,

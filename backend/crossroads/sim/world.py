@@ -35,7 +35,8 @@ from crossroads.sim.abnormal import AbnormalTraffic, injected_departures, with_d
 from crossroads.sim.blocking import BlockedBy, held_whole_episode, nearest_barrier
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.clearing import JunctionClearing, Pose
-from crossroads.sim.courtesy import Cars, Courtesy, Movers
+from crossroads.sim.courtesy import EGO_STANDING_MPS, Cars, Courtesy, Movers
+from crossroads.sim.courtesy import NEAR_M as COURTESY_NEAR_M
 from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
 from crossroads.sim.gridlock import GridlockBreaker
@@ -364,7 +365,7 @@ class World:
         around = self._around(snap)
         obs = self._observe(snap, around)
         self.outcome = self._judge(snap, obs, previous_distance, around)
-        if self.outcome is None and self._let_pedestrians_stop(snap):
+        if self.outcome is None and self._let_pedestrians_stop(snap, around):
             # a cyclist was taken out: observe again, so no one reads a participant SUMO no longer has
             snap = self.session.snapshot()
             obs = self._observe(snap)
@@ -389,12 +390,12 @@ class World:
 
     def _look_ahead_for_sumo_driver(self, snap: Snapshot) -> None:
         """SUMO's driver brakes for a pedestrian, cyclist or vehicle in the ego's way
-        (sim/look_ahead.py), but not for a pedestrian or cyclist the courtesy holds (it waits for
-        the ego)."""
+        (sim/look_ahead.py), but, while the ego stands, not for a pedestrian or cyclist the courtesy
+        holds (it waits for the ego; once the ego moves, one held still stands in its way)."""
         is_vehicle = snap.kind_code == _VEHICLE
         rows = (~is_vehicle).nonzero()[0]
         held = self._courtesy.held_pedestrians | set(self._courtesy.held_cyclists)
-        if held:
+        if held and float(self.ego[2]) < EGO_STANDING_MPS:
             rows = np.array([r for r in rows.tolist() if str(snap.ids[r]) not in held], dtype=np.intp)
         cars = is_vehicle.nonzero()[0]
         self._look_ahead.update(self.session, self._ego_pose(),
@@ -403,24 +404,32 @@ class World:
                                 vehicles=(snap.x[cars], snap.y[cars], snap.heading[cars], snap.speed[cars],
                                           snap.length[cars], snap.width[cars]))
 
-    def _let_pedestrians_stop(self, snap: Snapshot) -> bool:
+    def _let_pedestrians_stop(self, snap: Snapshot, around: _Around) -> bool:
         """Pedestrians, cyclists and drivers (not the abnormal ones) about to move into the
-        standing ego stop (sim/courtesy.py); a cyclist taken out after a standoff is an episode
-        event. Whether anyone was taken out."""
-        ego = self._ego_pose()
-        if not self._courtesy.may_act(ego[3]):
+        standing ego stop, pedestrians about to walk into a moving ego's side too (sim/courtesy.py);
+        a cyclist taken out after a standoff is an episode event. Whether anyone was taken out."""
+        if not self._courtesy.enabled:
             return False
-        movers = []
-        for code in (_PEDESTRIAN, _CYCLIST):
+        ego = self._ego_pose()
+
+        def movers(code: int) -> Movers:
             rows = (snap.kind_code == code).nonzero()[0]
-            movers.append(Movers(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows]))
+            return Movers(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows])
+
+        if not self._courtesy.may_act(ego[3]):  # the ego moves and no one is held: its sides only
+            near = ((snap.kind_code == _PEDESTRIAN) & (around.distance < COURTESY_NEAR_M)).nonzero()[0]
+            if len(near):  # (most steps: no one)
+                self._courtesy.watch_sides(self.session, Movers(snap.ids[near], snap.x[near], snap.y[near],
+                                                                snap.heading[near], snap.speed[near]), ego)
+            return False
+        pedestrians = movers(_PEDESTRIAN)
         drivers = (snap.kind_code == _VEHICLE) & (snap.ids != EGO_ID)
         if self._abnormal_ids:
             drivers &= ~np.isin(snap.ids, list(self._abnormal_ids))
         rows = drivers.nonzero()[0]
         cars = Cars(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows],
                     snap.length[rows], snap.width[rows])
-        removals = self._courtesy.update(self.session, movers[0], movers[1], ego, cars)
+        removals = self._courtesy.update(self.session, pedestrians, movers(_CYCLIST), ego, cars)
         self.events.extend(r.to_event(self.time_s) for r in removals)
         return bool(removals)
 
