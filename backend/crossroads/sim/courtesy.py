@@ -13,10 +13,10 @@ go round the car.
 
 The rule: while the ego stands (below :data:`EGO_STANDING_MPS`), a pedestrian or cyclist whose way
 ahead would bring its body into the ego's footprint stops (a cyclist at its own deceleration,
-through SUMO), and goes on as soon as either no longer holds (the ego drives off, or it no longer
-faces the car). A pedestrian looks :data:`LOOKAHEAD_S` ahead at its speed (at least
-:data:`LOOKAHEAD_MIN_M`); a cyclist that far plus its braking distance, so that it can stop in
-time. A cyclist held :data:`CYCLIST_STANDOFF_S` while the ego still stands goes round the car: it
+through SUMO), and goes on as soon as its way no longer comes into the ego (the ego has driven
+on, or it no longer faces the car). A pedestrian looks :data:`LOOKAHEAD_S` ahead at its speed
+(at least :data:`LOOKAHEAD_MIN_M`); a cyclist that far plus its braking distance, so that it can
+stop in time. A cyclist held :data:`CYCLIST_STANDOFF_S` while the ego still stands goes round the car: it
 is taken out of the simulation, an episode event like the gridlock breaker's — held short of a car
 standing across the bike lane, it stands where that car waits to go, and the two would wait on
 each other (tried: SUMO's driver then passed only once the gridlock breaker took the cyclist out,
@@ -34,10 +34,10 @@ the crossing towards the ego's side walked into its rear quarter as the ego pull
 
 Drivers too: a car (not an abnormal one, which the scenario makes reckless on purpose) whose way
 ahead, :data:`LOOKAHEAD_S` at its speed plus its braking distance from its front bumper, would
-bring its body into the standing ego is held until the ego drives off or it no longer faces the
-car. SUMO's drivers wait for a car standing across their way inside the junction as long as they
-heed the junction's right of way; a vehicle clearing the junction after its green
-(``sim/clearing.py``) no longer does, and no driver runs into a car standing in front of it.
+bring its body into the standing ego is held until its way no longer comes into the ego. SUMO's
+drivers wait for a car standing across their way inside the junction as long as they heed the
+junction's right of way; a vehicle clearing the junction after its green (``sim/clearing.py``) no
+longer does, and no driver runs into a car standing in front of it.
 
 Pure geometry below; :class:`Courtesy` applies it to a session.
 """
