@@ -189,10 +189,19 @@ class Courtesy:
         """:meth:`update` while the ego moves and no one is held (``may_act`` False): only
         pedestrians about to walk into the ego's side or rear can be held."""
         if self.enabled:
-            now = _who(pedestrians, ego, walking_into_side)
-            if now:
-                self.held_pedestrians = _apply(now, self.held_pedestrians, pedestrians.ids,
-                                               session.hold_person, session.release_person)
+            self._hold_pedestrians(session, pedestrians, ego)
+
+    def _hold_pedestrians(self, session: SumoSession, pedestrians: Movers,
+                          ego: tuple[float, float, float, float, float, float]) -> None:
+        """Hold and release pedestrians: all walking into a standing ego; for a moving one, those
+        walking into its sides and those held before whose way still comes into it."""
+        if ego[3] < EGO_STANDING_MPS:
+            now = _who(pedestrians, ego, walking_into)
+        else:
+            now = (_who(pedestrians, ego, walking_into_side)
+                   | _who(_only(pedestrians, self.held_pedestrians), ego, walking_into))
+        self.held_pedestrians = _apply(now, self.held_pedestrians, pedestrians.ids,
+                                       session.hold_person, session.release_person)
 
     def update(self, session: SumoSession, pedestrians: Movers, cyclists: Movers,
                ego: tuple[float, float, float, float, float, float], cars: Cars = NO_CARS) -> list[Removal]:
@@ -202,14 +211,9 @@ class Courtesy:
         :data:`CYCLIST_STANDOFF_S`)."""
         if not self.enabled:
             return []
+        self._hold_pedestrians(session, pedestrians, ego)
+        # a moving ego holds no new car or cyclist; whoever it held stays until its way is clear
         standing = ego[3] < EGO_STANDING_MPS
-        # a moving ego holds no one new but pedestrians about to walk into its sides; whoever it
-        # held stays until its way is clear of the ego
-        now = (_who(pedestrians, ego, walking_into) if standing
-               else _who(pedestrians, ego, walking_into_side) | _who(_only(pedestrians, self.held_pedestrians), ego,
-                                                                     walking_into))
-        self.held_pedestrians = _apply(now, self.held_pedestrians, pedestrians.ids,
-                                       session.hold_person, session.release_person)
 
         def hold(vid: str) -> None:
             session.set_speed(vid, 0.0)

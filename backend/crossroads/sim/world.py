@@ -412,24 +412,24 @@ class World:
             return False
         ego = self._ego_pose()
 
-        def movers(code: int) -> Movers:
-            rows = (snap.kind_code == code).nonzero()[0]
+        def movers(which: np.ndarray) -> Movers:
+            rows = which.nonzero()[0]
             return Movers(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows])
 
+        is_pedestrian = snap.kind_code == _PEDESTRIAN
         if not self._courtesy.may_act(ego[3]):  # the ego moves and no one is held: its sides only
-            near = ((snap.kind_code == _PEDESTRIAN) & (around.distance < COURTESY_NEAR_M)).nonzero()[0]
-            if len(near):  # (most steps: no one)
-                self._courtesy.watch_sides(self.session, Movers(snap.ids[near], snap.x[near], snap.y[near],
-                                                                snap.heading[near], snap.speed[near]), ego)
+            near = is_pedestrian & (around.distance < COURTESY_NEAR_M)
+            if near.any():  # (most steps: no one)
+                self._courtesy.watch_sides(self.session, movers(near), ego)
             return False
-        pedestrians = movers(_PEDESTRIAN)
         drivers = (snap.kind_code == _VEHICLE) & (snap.ids != EGO_ID)
         if self._abnormal_ids:
             drivers &= ~np.isin(snap.ids, list(self._abnormal_ids))
         rows = drivers.nonzero()[0]
         cars = Cars(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows],
                     snap.length[rows], snap.width[rows])
-        removals = self._courtesy.update(self.session, pedestrians, movers(_CYCLIST), ego, cars)
+        removals = self._courtesy.update(self.session, movers(is_pedestrian), movers(snap.kind_code == _CYCLIST),
+                                         ego, cars)
         self.events.extend(r.to_event(self.time_s) for r in removals)
         return bool(removals)
 
