@@ -1,11 +1,13 @@
-"""Latency of one whole online IDC decision next to a bare forward pass of the same networks.
+"""Latency of one whole online IDC decision next to the forward pass of its networks alone.
 
     .venv/bin/python benchmarks/decision_latency.py [--checkpoint models/apg.pt] [--samples 2000]
 
-Whole decision = the light logic + x_other selection + the state of every candidate path + the
-value network on the batch of candidates + argmin + the policy's mean action for τ*.
-Bare = value network on the same batch + the policy on one state, nothing else. Both on
-observations recorded from a real episode (c_three_lane, left turn, paper traffic), one thread.
+Whole decision = the light logic + x_other selection + the state of every candidate path + their
+normalisation (``network_input``, once for both networks) + the value network on the batch of
+candidates + argmin + the policy's mean action for τ*.
+Networks alone = the value network on the same batch, already normalised, + the policy on one of
+its rows, nothing else: what the decision adds is the difference. Both on observations recorded
+from a real episode (c_three_lane, left turn, paper traffic), one thread.
 Targets: p99 of the whole decision ≤ 1 ms on this CPU, ≤ 2 ms with the shield (the paper: < 10 ms).
 A third line times the same decision with the safety shield (``idc.shield``, ``--policy …+shield``,
 not the paper's): the curvature of every perceived participant and the two 40-step backups on top.
@@ -24,7 +26,7 @@ import torch
 
 from crossroads.idc.decision import IdcController
 from crossroads.idc.rule_based import RuleBasedController
-from crossroads.idc.state import build_states, select_others
+from crossroads.idc.state import build_states, network_input, select_others
 from crossroads.intersections import catalogue
 from crossroads.rl.checkpoint import load_networks
 from crossroads.rl.neural_nets import make_networks
@@ -79,17 +81,18 @@ def main() -> None:
     controller.reset(candidates)
     shielded.reset(candidates)
 
-    # the states the bare pass sees: the same batches the decision builds
+    # what the networks alone see: the same batches the decision builds, normalised
     batches = []
     for obs in observations:
         others = select_others(obs.ego, obs.perceived.observations, obs.perceived.kinds)
         states = build_states(obs.ego, others, candidates, controller.speed_mode(obs), controller.preview)
-        batches.append(torch.from_numpy(states).float())
+        batches.append(network_input(torch.from_numpy(states).float(), controller.policy.preview,
+                                     controller.policy.lead))
 
     def bare(batch: torch.Tensor) -> None:
         with torch.inference_mode():
-            values = controller.value(batch)
-            controller.policy.mean_action(batch[int(torch.argmin(values))][None])
+            values = controller.value.value_of_input(batch)
+            controller.policy.mean_action_of_input(batch[int(torch.argmin(values))][None])
 
     for i in range(200):  # warm-up: allocator, caches
         controller.decide(observations[i % len(observations)])
@@ -114,9 +117,9 @@ def main() -> None:
     print(f"{len(candidates)} candidate paths, networks 5 x 256 GELU"
           f"{' with the path preview' if controller.preview else ''}, {args.samples} decisions, 1 thread")
     print(f"whole decision : p50 {w50:.3f} ms  p99 {w99:.3f} ms  max {wmax:.3f} ms")
-    print(f"bare forward   : p50 {f50:.3f} ms  p99 {f99:.3f} ms  max {fmax:.3f} ms")
+    print(f"networks alone : p50 {f50:.3f} ms  p99 {f99:.3f} ms  max {fmax:.3f} ms")
     print(f"with the shield: p50 {s50:.3f} ms  p99 {s99:.3f} ms  max {smax:.3f} ms (not the paper's; +shield)")
-    print(f"overhead p50   : {w50 - f50:.3f} ms ({w50 / f50:.2f} x the bare pass)")
+    print(f"overhead p50   : {w50 - f50:.3f} ms ({w50 / f50:.2f} x the networks alone)")
     print(f"targets: p99 <= 1 ms {'met' if w99 <= 1.0 else 'NOT met'}; "
           f"with the shield p99 <= 2 ms {'met' if s99 <= 2.0 else 'NOT met'}")
 

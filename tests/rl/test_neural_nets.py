@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from crossroads.constants import JERK_MAX, STATE_DIM, STEER_RATE_MAX, XI_RANGES
-from crossroads.rl.neural_nets import XI_KEYS, Adversary, DrivingPolicy, ValueNet, make_networks
+from crossroads.rl.neural_nets import MLP, XI_KEYS, Adversary, DrivingPolicy, ValueNet, make_networks, mlp
 
 torch.manual_seed(0)
 POLICY = DrivingPolicy(2, 32)
@@ -139,3 +140,22 @@ def test_participant_pooling_reads_every_slot_of_a_kind_alike() -> None:
         widen_first_layer(flat.policy.state_dict(), nets.policy)
     with pytest.raises(ValueError, match="must be ≥ 0 units"):
         make_networks("dpg", 2, 32, encoder=-1)
+
+
+def test_the_mlp_gives_nn_sequentials_numbers_and_keys_and_gradients() -> None:
+    torch.manual_seed(1)
+    net = mlp(12, 3, 3, 64)
+    plain = torch.nn.Sequential(*net)
+    assert list(net.state_dict()) == list(plain.state_dict())  # saved networks load unchanged
+    x = torch.randn(5, 12, requires_grad=True)
+    assert torch.equal(net(x), plain(x))
+    (g_mlp,) = torch.autograd.grad(net(x).sum(), x)
+    (g_seq,) = torch.autograd.grad(plain(x).sum(), x)
+    assert torch.equal(g_mlp, g_seq)
+    assert isinstance(net[:2], MLP) and torch.equal(net[:2](x), plain[:2](x))
+
+
+@pytest.mark.parametrize("layer", [torch.nn.ReLU(), torch.nn.GELU(approximate="tanh"), torch.nn.Dropout()])
+def test_the_mlp_refuses_layers_its_loop_does_not_run(layer: torch.nn.Module) -> None:
+    with pytest.raises(TypeError, match="Linear and exact GELU"):
+        MLP(torch.nn.Linear(2, 2), layer)

@@ -18,6 +18,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from crossroads.arrays import TorchTrigNumpyOps
 from crossroads.constants import EGO_LENGTH_M
 from crossroads.idc.controller import Decision, SpeedMode
 from crossroads.idc.crosswalks import CrossingSpan, can_stand_short_of, claims_ahead, crossing_spans, nearest_claimed
@@ -52,6 +53,7 @@ class IdcController:
         self.value = value.eval()
         self.name = name
         self._dtype = next(value.parameters()).dtype
+        self._numpy_dtype = {torch.float32: np.float32, torch.float64: np.float64}.get(self._dtype)
         self._candidates: tuple[CandidatePath, ...] = ()
         self.shield = shield
         self._shield_braked = False  # the shield's verdict last step: it releases with a margin (idc.shield)
@@ -64,6 +66,7 @@ class IdcController:
         # themselves; when the two read it alike, a decision normalises its candidates once for both
         self._shared_input = (hasattr(value, "value_of_input") and hasattr(policy, "mean_action_of_input")
                               and getattr(policy, "low", None) is not None and policy.low.dtype == self._dtype
+                              and self._numpy_dtype is not None
                               and (policy.preview, policy.lead) == (value.preview, value.lead))
 
     def reset(self, candidates: Sequence[CandidatePath]) -> None:
@@ -80,18 +83,25 @@ class IdcController:
         """(τ*, action (2,), values (n,)) for the states of the n candidate paths (n, 108; 120 with
         the path preview)."""
         with torch.inference_mode():
-            batch = torch.from_numpy(np.ascontiguousarray(states)).to(self._dtype)
             # identical states get one value, the first's: a tie goes to the first path (below)
             same = torch.from_numpy(first_identical(states))
-            if self._shared_input:  # the same numbers as the networks' own calls, one normalisation fewer
-                x = network_input(batch, self.policy.preview, self.policy.lead)
+            if self._shared_input:  # the networks' own numbers, bit for bit, one normalisation fewer
+                x = torch.from_numpy(self._normalised(states))
                 value_of, action_of = self.value.value_of_input, self.policy.mean_action_of_input
             else:
-                x, value_of, action_of = batch, self.value, self.policy.mean_action
+                x = torch.from_numpy(np.ascontiguousarray(states)).to(self._dtype)
+                value_of, action_of = self.value, self.policy.mean_action
             values = value_of(x)[same].double().numpy()
             best = least_value_path(values)
             action = action_of(x[best:best + 1])[0]
         return best, action.double().numpy(), values
+
+    def _normalised(self, states: np.ndarray) -> np.ndarray:
+        """``network_input`` of the candidates' states in the networks' dtype, in numpy with torch's
+        sin and cos: the numbers the networks' own torch normalisation gives, at a fraction of its
+        cost on a few states (:class:`crossroads.arrays.TorchTrigNumpyOps`)."""
+        data = np.ascontiguousarray(states, dtype=self._numpy_dtype)
+        return np.ascontiguousarray(network_input(data, self.policy.preview, self.policy.lead, xp=TorchTrigNumpyOps))
 
     def decide(self, observation: Observation) -> Decision:
         holds = _light_holds(observation)  # once a step: the mode and the shield's line both follow from it
