@@ -20,6 +20,12 @@ scenarios' own base seed 0, so that nothing here was tuned on the seeds it repor
 3. targets: SUMO's driver ≥ 98 % on every nominal scenario with 0 collisions; blocked runs ≤ 1
    per scenario; the rule controller ≥ 90 % on the nominal left turn of c_three_lane and ≥ 95 % on
    every nominal straight and right turn; every flow within 10 % of its demand.
+
+The episodes run in the batch workers of ``crossroads evaluate`` (evaluation/executors.py), each in
+a child forked from its worker: SUMO's result can depend on the memory it runs in, so a seed run
+after other episodes in one process can end otherwise than the same seed run first. Run this way,
+every episode here is the one ``crossroads evaluate SCENARIO --seed BASE --runs N --policy P``
+gives for that run.
 """
 
 from __future__ import annotations
@@ -29,20 +35,20 @@ import json
 import os
 import sys
 import tempfile
+import threading
 from collections import Counter
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from crossroads.evaluation.episode import run_episode  # noqa: E402
+from crossroads.evaluation.executors import EpisodeReport, EpisodeTask, ProcessExecutor, WorkerJob  # noqa: E402
 from crossroads.evaluation.metrics import wilson_interval  # noqa: E402
-from crossroads.evaluation.sumo_driver import SUMO_POLICY, SumoDriverPolicy  # noqa: E402
+from crossroads.evaluation.sumo_driver import SUMO_POLICY  # noqa: E402
 from crossroads.network.junction import read_junction  # noqa: E402
 from crossroads.scenario.spec import load_scenario, run_seeds, to_world_config  # noqa: E402
 from crossroads.sim.flow import measure_flow  # noqa: E402
-from crossroads.sim.world import World  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_SCENARIOS = sorted((ROOT / "scenarios" / "nominal").glob("*.yaml")) + sorted(
@@ -50,27 +56,26 @@ DEFAULT_SCENARIOS = sorted((ROOT / "scenarios" / "nominal").glob("*.yaml")) + so
 DEFAULT_BASE_SEED = 20261206  # differs from the scenarios' own base seed (0)
 
 
-def _controller(policy: str):  # noqa: ANN202 - a Controller or SUMO's driver
-    if policy == SUMO_POLICY:
-        return SumoDriverPolicy()
-    from crossroads.evaluation.policies import load_controller
-    from crossroads.policy.ref import parse_policy
-    return load_controller(parse_policy(policy))
-
-
-def _episodes(task: tuple[str, str, list[int]]) -> list[dict[str, object]]:
-    """Run one scenario's seeds with one policy (in a worker process)."""
-    path, policy, seeds = task
-    spec = load_scenario(Path(path))
-    controller = _controller(policy)
+def _episodes(path: Path, policy: str, seeds: list[int], workers: int) -> list[dict[str, object]]:
+    """Run one scenario's seeds with one policy in ``workers`` batch workers (module docstring);
+    one row per seed, in the seeds' order (an episode that raised: outcome ``error``)."""
+    spec = load_scenario(path)
+    job = WorkerJob(spec=spec.model_dump(mode="json"), base_dir=str(path.parent), policy_ref=policy,
+                    traces="none")
+    reports: dict[int, EpisodeReport] = {}
+    ProcessExecutor(workers).run(job, [EpisodeTask(i, seed) for i, seed in enumerate(seeds)],
+                                 lambda r: reports.__setitem__(r.run_index, r), threading.Event())
     out = []
-    with World(to_world_config(spec, Path(path).parent)) as world:
-        for seed in seeds:
-            r = run_episode(world, controller, seed)
-            out.append({"seed": seed, "outcome": r.outcome, "time_s": r.time_s,
-                        "travel_time_s": r.travel_time_s, "blocked_by": r.blocked_by,
-                        "removed": sum(1 for e in r.events if e["event"] == "gridlock_removed"),
-                        "detail": r.detail})
+    for i, seed in enumerate(seeds):
+        r = reports[i].result
+        if r is None:
+            out.append({"seed": seed, "outcome": "error", "time_s": None, "travel_time_s": None,
+                        "blocked_by": None, "removed": 0, "detail": str(reports[i].error).splitlines()[0]})
+            continue
+        out.append({"seed": seed, "outcome": r["outcome"], "time_s": r["time_s"],
+                    "travel_time_s": r["travel_time_s"], "blocked_by": r["blocked_by"],
+                    "removed": sum(1 for e in r["events"] if e["event"] == "gridlock_removed"),
+                    "detail": r["detail"]})
     return out
 
 
@@ -138,34 +143,25 @@ def main() -> int:
     args = parser.parse_args()
     policies = args.policy or [SUMO_POLICY, "rule"]
     scenarios = args.scenario or DEFAULT_SCENARIOS
-    tasks = []
-    for path in scenarios:
-        spec = load_scenario(path).model_copy(update={"seed": args.base_seed})
-        seeds = run_seeds(spec, args.runs)
-        chunk = 10  # seeds per task: small enough to keep every worker busy to the end
-        for policy in policies:
-            tasks += [(str(path), policy, seeds[i:i + chunk]) for i in range(0, len(seeds), chunk)]
     results: dict[tuple[str, str], list[dict[str, object]]] = {}
-    chunks_left = Counter((t[0], t[1]) for t in tasks)
     ok = True
     print(f"base seed {args.base_seed}, {args.runs} runs per scenario and policy", flush=True)
     print(f"{'scenario':38} {'policy':6} {'passed':>7} {'95 % CI':>15} {'coll':>4} {'red':>3} "
           f"{'off':>3} {'tmo':>3} {'blocked':>7} {'removed/ep':>10}", flush=True)
-    with ProcessPoolExecutor(args.workers) as pool:
-        futures = {pool.submit(_episodes, task): task for task in tasks}
-        for future in as_completed(futures):
-            path, policy, _ = futures[future]
-            results.setdefault((path, policy), []).extend(future.result())
-            chunks_left[(path, policy)] -= 1
-            if chunks_left[(path, policy)] == 0:
-                ok &= _report(path, policy, results[(path, policy)])
-        flows = []
-        if args.flow_window > 0:
-            by_intersection = {}
-            for path in scenarios:
-                by_intersection.setdefault(str(load_scenario(path).intersection), path)
-            flow_tasks = [(str(p), args.base_seed, args.flow_window, args.per_lane)
-                          for p in by_intersection.values()]
+    if args.runs > 0:
+        for path in scenarios:
+            seeds = run_seeds(load_scenario(path).model_copy(update={"seed": args.base_seed}), args.runs)
+            for policy in policies:
+                results[(str(path), policy)] = _episodes(path, policy, seeds, args.workers)
+                ok &= _report(str(path), policy, results[(str(path), policy)])
+    flows = []
+    if args.flow_window > 0:
+        by_intersection = {}
+        for path in scenarios:
+            by_intersection.setdefault(str(load_scenario(path).intersection), path)
+        flow_tasks = [(str(p), args.base_seed, args.flow_window, args.per_lane)
+                      for p in by_intersection.values()]
+        with ProcessPoolExecutor(args.workers) as pool:
             flows = list(pool.map(_flow, flow_tasks))
     if flows:
         print(f"\nflow over {args.flow_window:g} s after the warm-up, per entrance lane and hour "

@@ -20,7 +20,7 @@ from shapely.geometry import Polygon
 
 from crossroads.geometry import FloatArray
 from crossroads.planning import CandidatePath
-from crossroads.sim.other import route_curvature
+from crossroads.sim.other import RouteShape, route_curvature, route_shape
 from crossroads.sim.signals import Light
 from crossroads.sim.snapshot import Snapshot
 
@@ -92,14 +92,37 @@ class Observation:
         return self.distance_to_stop_line_m < 0.0
 
 
+class LaneShapes(dict[str, FloatArray]):
+    """Lane centre lines by SUMO lane id (a plain mapping to (N, 2) arrays, as
+    :attr:`Observation.lane_shapes` is typed), which also keeps each lane's :class:`RouteShape`
+    once asked for it: the static map's geometry, read by :func:`participant_curvatures` for the
+    participants in the slots every step of a shielded decision. A lane given another shape
+    gets its geometry worked out anew."""
+
+    def route(self, lane: str) -> RouteShape | None:
+        """The lane's :class:`RouteShape`, or None for a lane this map does not describe."""
+        shape = self.get(lane)
+        if shape is None:
+            return None
+        routes: dict[str, tuple[FloatArray, RouteShape]] = self.__dict__.setdefault("_routes", {})
+        cached = routes.get(lane)
+        if cached is None or cached[0] is not shape:
+            cached = routes[lane] = (shape, route_shape(shape))
+        return cached[1]
+
+
 def participant_curvatures(lane_shapes: Mapping[str, FloatArray], lanes: Sequence[str],
                            observations: FloatArray, kinds: Sequence[str]) -> FloatArray:
     """Signed curvature 1/R [1/m] of perceived participants (the R of f_other), from the lane the
     map matches each to and its observed position (rows ``[p_x, p_y, ...]``): 0 on lanes
-    ``lane_shapes`` does not describe, and for pedestrians."""
+    ``lane_shapes`` does not describe, and for pedestrians. With :class:`LaneShapes` (the world's)
+    each lane's geometry is worked out once, not once a participant a step."""
     kappa = np.zeros(len(lanes))
     for k, lane in enumerate(lanes):
-        shape = lane_shapes.get(str(lane))
-        if shape is not None and kinds[k] != "pedestrian":
+        if kinds[k] == "pedestrian":
+            continue
+        shape = (lane_shapes.route(str(lane)) if isinstance(lane_shapes, LaneShapes)
+                 else lane_shapes.get(str(lane)))
+        if shape is not None:
             kappa[k] = route_curvature(shape, float(observations[k][0]), float(observations[k][1]))
     return kappa

@@ -15,14 +15,14 @@ business). Numpy or torch, batched over leading dimensions, differentiable in to
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from crossroads.arrays import ops
 from crossroads.constants import DT_S
-from crossroads.geometry import arc_lengths, as_points, drop_repeated_points, wrap_angle
+from crossroads.geometry import FloatArray, arc_lengths, as_points, drop_repeated_points, wrap_angle
 
 CURVATURE_WINDOW_M = 2.0  # [m] (choice) half-length of the route stretch the curvature is averaged over
 
@@ -59,8 +59,24 @@ def other_braking_step(others: Any, curvature: Any, decel_mps2: float, dt: float
     return other_step(others, curvature, xp.stack([zero, zero, dv, zero], axis=-1), dt)
 
 
-def route_curvature(points: ArrayLike, x: float, y: float, window_m: float = CURVATURE_WINDOW_M) -> float:
-    """Signed curvature [1/m] (positive turning left) of a route polyline near (x, y).
+class RouteShape(NamedTuple):
+    """A route polyline's distinct vertices (N, 2) [m] and the arc length at each [m]: what
+    :func:`route_curvature` reads of it, computed once (:func:`route_shape`)."""
+
+    points: FloatArray
+    cum: FloatArray
+
+
+def route_shape(points: ArrayLike) -> RouteShape:
+    """:class:`RouteShape` of a polyline (consecutive repeated vertices dropped)."""
+    pts = drop_repeated_points(as_points(points))
+    return RouteShape(pts, arc_lengths(pts))
+
+
+def route_curvature(points: ArrayLike | RouteShape, x: float, y: float,
+                    window_m: float = CURVATURE_WINDOW_M) -> float:
+    """Signed curvature [1/m] (positive turning left) of a route polyline near (x, y); ``points``
+    may be its :class:`RouteShape`, computed once for a polyline looked at again and again.
 
     The vertex nearest to (x, y) is found; the heading change between the segment entering the
     stretch ``[s − window_m, s + window_m]`` around it and the segment leaving it, divided by the arc
@@ -68,12 +84,11 @@ def route_curvature(points: ArrayLike, x: float, y: float, window_m: float = CUR
     simply widen the stretch to the neighbouring vertices. Straight routes (fewer than 3 distinct
     vertices or no turn) give 0.
     """
-    pts = drop_repeated_points(as_points(points))
+    pts, cum = points if isinstance(points, RouteShape) else route_shape(points)
     n = len(pts)
     if n < 3:
         return 0.0
     i = int(np.argmin((pts[:, 0] - x) ** 2 + (pts[:, 1] - y) ** 2))
-    cum = arc_lengths(pts)
     lo = int(np.searchsorted(cum, cum[i] - window_m, side="right")) - 1
     hi = int(np.searchsorted(cum, cum[i] + window_m, side="left"))
     lo = min(max(lo, 0), max(i - 1, 0))

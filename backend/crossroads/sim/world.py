@@ -41,7 +41,7 @@ from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
 from crossroads.sim.gridlock import GridlockBreaker
 from crossroads.sim.look_ahead import LookAhead
-from crossroads.sim.observation import GroundTruth, LightView, Observation, Perceived
+from crossroads.sim.observation import GroundTruth, LaneShapes, LightView, Observation, Perceived
 from crossroads.sim.outcome import Outcome
 from crossroads.sim.region import Region
 from crossroads.sim.signals import (
@@ -144,8 +144,7 @@ class World:
         self._crossing_areas = tuple(c.polygon for c in self.junction.crossings)  # Observation.crossings
         # lane centre lines by SUMO lane id, internal lanes through the junction included: the
         # turning radius R of f_other comes from the lane a participant is on and where on it
-        self.lane_shapes: dict[str, FloatArray] = {
-            lane.id: lane.centerline for lane in self.junction.lanes.values()}
+        self.lane_shapes = LaneShapes({lane.id: lane.centerline for lane in self.junction.lanes.values()})
         for a in self.junction.approaches:
             for c in a.connections:
                 if c.via_lane and c.via_shape is not None and len(c.via_shape) >= 2:
