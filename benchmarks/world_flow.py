@@ -67,15 +67,12 @@ def _episodes(path: Path, policy: str, seeds: list[int], workers: int) -> list[d
                                  lambda r: reports.__setitem__(r.run_index, r), threading.Event())
     out = []
     for i, seed in enumerate(seeds):
-        r = reports[i].result
-        if r is None:
-            out.append({"seed": seed, "outcome": "error", "time_s": None, "travel_time_s": None,
-                        "blocked_by": None, "removed": 0, "detail": str(reports[i].error).splitlines()[0]})
-            continue
-        out.append({"seed": seed, "outcome": r["outcome"], "time_s": r["time_s"],
-                    "travel_time_s": r["travel_time_s"], "blocked_by": r["blocked_by"],
-                    "removed": sum(1 for e in r["events"] if e["event"] == "gridlock_removed"),
-                    "detail": r["detail"]})
+        report = reports[i]
+        r = report.result or {}
+        out.append({"seed": seed, "outcome": report.outcome, "time_s": r.get("time_s"),
+                    "travel_time_s": r.get("travel_time_s"), "blocked_by": r.get("blocked_by"),
+                    "removed": sum(1 for e in r.get("events", ()) if e["event"] == "gridlock_removed"),
+                    "detail": r["detail"] if report.result else str(report.error).splitlines()[0]})
     return out
 
 

@@ -1,5 +1,6 @@
-"""benchmarks/world_flow.py runs its episodes as ``crossroads evaluate`` does: in batch workers,
-each episode forked, so a seed's row does not depend on what ran before it."""
+"""benchmarks/world_flow.py runs its episodes through the batch workers of ``crossroads evaluate``
+(whose fork per episode tests/evaluation/test_executors.py pins): one row per seed, in the seeds'
+order, the same rows whatever the order of the seeds and the number of workers."""
 
 from __future__ import annotations
 

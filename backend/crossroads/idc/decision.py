@@ -101,7 +101,7 @@ class IdcController:
         sin and cos: the numbers the networks' own torch normalisation gives, at a fraction of its
         cost on a few states (:class:`crossroads.arrays.TorchTrigNumpyOps`)."""
         data = np.ascontiguousarray(states, dtype=self._numpy_dtype)
-        return np.ascontiguousarray(network_input(data, self.policy.preview, self.policy.lead, xp=TorchTrigNumpyOps))
+        return network_input(data, self.policy.preview, self.policy.lead, xp=TorchTrigNumpyOps)  # one concatenate: contiguous
 
     def decide(self, observation: Observation) -> Decision:
         holds = _light_holds(observation)  # once a step: the mode and the shield's line both follow from it
