@@ -84,7 +84,8 @@ def _flow(task: tuple[str, int, float, bool]) -> dict[str, object]:
     with tempfile.TemporaryDirectory() as tmp:
         report = measure_flow(junction, cfg.demand, Path(tmp), seed=seed, warmup_s=cfg.warmup_s,
                               window_s=window, gridlock_stand_s=cfg.gridlock_stand_s,
-                              junction_clearing=cfg.junction_clearing, per_lane=per_lane)
+                              junction_clearing=cfg.junction_clearing, let_out=cfg.let_out,
+                              junction_lane_changes=cfg.junction_lane_changes, per_lane=per_lane)
     return {"intersection": str(spec.intersection), "kinds": [
         {"kind": k.kind, "demand": k.demand_per_lane_h, "crossed": k.crossed_per_lane_h,
          "removed": k.removed} for k in report.kinds],

@@ -258,7 +258,8 @@ def test_content_hash_is_canonical_and_sensitive() -> None:
         validate_scenario(with_({"runs": 200, "rho": None, "traffic.vehicles_per_hour": 400})))
     for change in ({"seed": 100}, {"runs": 11}, {"abnormal.rounding.share": 0.11}, {"rho": 0.51},
                    {"ego.entrance_lane": "south_in_2"}, {"name": "other"}, {"approach": None},
-                   {"abnormal.injection": {"arrive_s": 4.0}}, {"junction_clearing": False}):
+                   {"abnormal.injection": {"arrive_s": 4.0}}, {"junction_clearing": False},
+                   {"let_out": False}, {"junction_lane_changes": True}):
         assert content_hash(validate_scenario(with_(change, FULL))) != h, change
     # a field added later, when none, leaves the identity of the scenarios stored before it as it was
     assert content_hash(validate_scenario(with_({"abnormal.injection": None}, FULL))) == h
@@ -266,6 +267,9 @@ def test_content_hash_is_canonical_and_sensitive() -> None:
     # ... and so does one at its default
     assert content_hash(validate_scenario(with_({"junction_clearing": True}, FULL))) == h
     assert '"junction_clearing"' not in canonical_json(validate_scenario(FULL))
+    assert content_hash(validate_scenario(with_({"let_out": True}, FULL))) == h
+    assert '"let_out"' not in canonical_json(validate_scenario(FULL))
+    assert content_hash(validate_scenario(with_({"junction_lane_changes": False}, FULL))) == h
 
 
 def test_content_hash_is_pinned() -> None:

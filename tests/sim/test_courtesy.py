@@ -21,6 +21,7 @@ from crossroads.sim.courtesy import (
     cyclist_reach,
     driving_into,
     riding_into,
+    sweeping_into,
     walking_into,
 )
 from crossroads.sim.sumo import SumoSession
@@ -79,6 +80,39 @@ def test_a_car_passing_alongside_or_driving_away_is_not() -> None:
     assert not _driving(-15.0, 3.5, 0.0, 10.0)  # the next lane, 3.5 m from the ego's centre line
     assert not _driving(8.0, 0.0, 0.0, 10.0)  # ahead of the ego, driving away
     assert _driving(-15.0, 1.2, 0.0, 10.0)  # 1.2 m off the ego's line: its side would touch
+
+
+def _arc(cx: float, cy: float, radius: float, start_deg: float, end_deg: float) -> np.ndarray:
+    """A way along a circle round (cx, cy), from ``start_deg`` to ``end_deg`` (1° steps)."""
+    a = np.radians(np.linspace(start_deg, end_deg, int(abs(end_deg - start_deg)) + 1))
+    return np.column_stack([cx + radius * np.cos(a), cy + radius * np.sin(a)])
+
+
+def test_a_car_turning_into_the_standing_ego_sweeps_into_it_where_its_straight_way_ahead_misses() -> None:
+    # a right turn of radius 8 m round (0, 8): the car's front at (0, 0) heading east, turning
+    # north; the ego stands beside the turn, its centre at (6.5, 4.0), heading north
+    way = _arc(0.0, 8.0, 8.0, -90.0, 0.0)
+    ego = (6.5, 4.0, np.pi / 2, 4.8, 2.0)
+    assert sweeping_into(*ego, way, 4.5, 1.8, reach=6.0)
+    car_centre = (-2.25, 0.0)  # the straight way ahead, east along y = 0, passes below the ego
+    assert not driving_into(*ego, np.array([car_centre[0]]), np.array([car_centre[1]]), np.array([0.0]),
+                            np.array([3.0]), np.array([4.5]), np.array([1.8]))[0]
+    assert not sweeping_into(*ego, way, 4.5, 1.8, reach=1.0)  # not within a metre
+    away = _arc(0.0, -8.0, 8.0, 90.0, 0.0)  # the same car turning right, the other way
+    assert not sweeping_into(*ego, away, 4.5, 1.8, reach=6.0)
+    touching = (1.0, 1.5, 0.0, 4.8, 2.0)  # the ego already beside its front: the judge's business
+    assert not sweeping_into(*touching, way, 4.5, 1.8, reach=6.0)
+
+
+def test_cars_inside_the_junction_held_when_their_lane_bends_into_the_standing_ego() -> None:
+    rule, session = Courtesy(), _Recorder()
+    nobody = Movers(*(np.array([]) for _ in range(5)))
+    cars = _cars(("turning", -2.25, 0.0, 0.0, 5.0))  # looks 7.8 m ahead
+    ego = (6.5, 4.0, np.pi / 2, 0.0, 4.8, 2.0)
+    rule.update(session, nobody, nobody, ego, cars)  # type: ignore[arg-type]
+    assert not rule.held_cars  # its straight way ahead passes the ego
+    rule.update(session, nobody, nobody, ego, cars, {"turning": _arc(0.0, 8.0, 8.0, -90.0, 0.0)})  # type: ignore[arg-type]
+    assert rule.held_cars == {"turning"}
 
 
 def _cars(*rows: tuple[str, float, float, float, float]) -> Cars:
@@ -248,7 +282,10 @@ path, seed, keep = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3] == "on"
 if not keep:  # the rule before: those held go the moment the ego moves, and it holds no one new
     courtesy._only = lambda movers, ids: type(movers)(*(c[:0] for c in movers))
     courtesy.walking_into_side = lambda *args: courtesy.walking_into(*args) & False
-with World(to_world_config(load_scenario(path), path.parent)) as world:
+from dataclasses import replace
+# the scene as it was found: before drivers let those caught inside out, and changed lanes inside
+cfg = replace(to_world_config(load_scenario(path), path.parent), let_out=False, junction_lane_changes=True)
+with World(cfg) as world:
     result = run_episode(world, SumoDriverPolicy(), seed=seed)
 print(json.dumps([result.outcome, result.detail]))
 """
@@ -260,8 +297,9 @@ def test_a_pedestrian_held_beside_the_ego_does_not_walk_into_it_as_it_pulls_away
     base seed, SUMO's driver: the car ahead of the standing ego is taken out by the gridlock breaker
     and the ego starts; a pedestrian held 0.9 m from its front corner, released the moment the ego
     moved, walked into it. Kept held until the ego has passed, it does not. ("off": the rule before,
-    which held no one for a moving ego.) Fresh processes, as ``crossroads run`` (SUMO's result can
-    depend on what the process ran before)."""
+    which held no one for a moving ego.) The world without the rules that came after and change
+    this run's traffic (``let_out``, ``junction_lane_changes``). Fresh processes, as ``crossroads
+    run`` (SUMO's result can depend on what the process ran before)."""
     path = Path(__file__).resolve().parents[2] / "scenarios/nominal/e_irregular_oblique-left.yaml"
     outcomes = {}
     for mode in ("off", "on"):

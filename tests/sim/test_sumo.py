@@ -246,3 +246,33 @@ def test_static_table_grows_and_forgets() -> None:
         table.rows(ids)
     table.add("p0", _Static("vehicle", 4.5, 1.8, ("a", "b")))  # back under a new row
     assert table.kind_code[table.rows(("p0",))].tolist() == [0] and table.route["p0"] == ("a", "b")
+
+
+def _lane_changes_inside_the_junction(net: Path, routes: Path, forbid: bool, steps: int) -> int:
+    """How often a vehicle moved from one internal lane to another of the same internal edge (a
+    lane change inside the junction, SUMO's sideways jump) in ``steps`` steps."""
+    changes = 0
+    with SumoSession().start(net, [routes], seed=5) as sim:
+        if forbid:
+            sim.forbid_lane_changes(lane for lane in sim.lane_ids() if lane.startswith(":"))
+        last: dict[str, str] = {}
+        for _ in range(steps):
+            sim.step()
+            lanes = sim.vehicle_lanes()
+            for vid, lane in lanes.items():
+                before = last.get(vid, "")
+                if lane.startswith(":") and before.startswith(":") and lane != before \
+                        and lane.rsplit("_", 1)[0] == before.rsplit("_", 1)[0]:
+                    changes += 1
+            last = lanes
+    return changes
+
+
+def test_forbidden_lane_changes_inside_the_junction_do_not_happen(tmp_path: Path) -> None:
+    """b_two_lane's straight movements run over two parallel internal lanes of one edge, and SUMO's
+    drivers change between them; with the change permissions taken away they do not."""
+    net = catalogue.build(NET)
+    routes = write_routes(read_junction(net), TrafficDemand(vehicles_per_hour=800), tmp_path / "r.rou.xml",
+                          seed=5, duration_s=400)
+    assert _lane_changes_inside_the_junction(net, routes, forbid=False, steps=3000) > 0
+    assert _lane_changes_inside_the_junction(net, routes, forbid=True, steps=3000) == 0

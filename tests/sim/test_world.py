@@ -150,7 +150,7 @@ def test_a_timeout_behind_a_standing_queue_says_how_long_it_stood(net: str) -> N
         obs, outcome = drive_to_outcome(world, seed=3)
     assert outcome.kind == "timeout", outcome
     assert outcome.detail.startswith("still driving after 15 s; the vehicle ahead had stood ")
-    assert obs.front_vehicle_stopped_s > 8.0
+    assert obs.front_vehicle_stopped_s > 5.0
     assert obs.light.light == "red" and obs.distance_to_stop_line_m > 10.0  # held by the queue
 
 
@@ -235,3 +235,16 @@ def test_abnormal_vehicles_of_the_paper_cases_show_in_the_world() -> None:
             if kind == "overspeed":
                 # set to +50 %; seen accelerating through +37 % within the episode's reach
                 assert top_speed > 1.3 * 30 / 3.6
+
+
+@pytest.mark.parametrize("allowed", [False, True])
+def test_lane_changes_inside_the_junction_follow_the_world_config(net: str, allowed: bool) -> None:
+    import libsumo
+
+    with World(config(net, demand=NO_TRAFFIC, junction_lane_changes=allowed)) as world:
+        world.reset(1)
+        inside = [lane for lane in world.session.lane_ids() if lane.startswith(":C_")]
+        restricted = [lane for lane in inside
+                      if libsumo.lane.getChangePermissions(lane, 1) == ()  # no class may change
+                      and libsumo.lane.getChangePermissions(lane, -1) == ()]
+    assert inside and (restricted == []) is allowed

@@ -316,6 +316,18 @@ class ScenarioSpec(BaseModel):
         "longer green drives on regardless of the junction's right of way, keeping its distance to "
         "whoever is ahead (sim/clearing.py); false keeps SUMO's, whose left-turners then went on "
         "yielding inside the junction into the cross street's green.")
+    let_out: bool = Field(
+        default=True,
+        description="Drivers about to enter the junction on green wait before their stop line for a "
+        "vehicle caught inside it (the ego included) whose remaining way they would cross, for at most "
+        "20 s after it was caught, when they can still stop comfortably (sim/letting_out.py); false "
+        "keeps SUMO's, whose cross street enters across a left-turner clearing the junction. Needs "
+        "junction_clearing.")
+    junction_lane_changes: bool = Field(
+        default=False,
+        description="SUMO's drivers may change lanes inside the junction, between the parallel internal "
+        "lanes of one movement: SUMO's own, where a change is a sideways jump of a lane's width in one "
+        "step that no one sees coming; false (the default) forbids it, as traffic rules do.")
     runs: int = Field(default=EVALUATION_RUNS, ge=1, le=MAX_RUNS, description="[-] Episodes per policy (paper: 200).")
     seed: int = Field(
         default=0, ge=0, le=MAX_SEED,
@@ -446,7 +458,8 @@ def canonical_json(spec: ScenarioSpec) -> str:
 
 
 # (group..., field, value): a field added later, left out of the identity while it has that value
-_ADDED_LATER = (("abnormal", "injection", None), ("junction_clearing", True))
+_ADDED_LATER = (("abnormal", "injection", None), ("junction_clearing", True), ("let_out", True),
+                ("junction_lane_changes", False))
 
 
 def content_hash(spec: ScenarioSpec) -> str:
@@ -535,6 +548,8 @@ def to_world_config(spec: ScenarioSpec, base_dir: str | Path | None = None) -> W
         timeout_s=spec.timeout_s,
         gridlock_stand_s=spec.gridlock_stand_s,
         junction_clearing=spec.junction_clearing,
+        let_out=spec.let_out,
+        junction_lane_changes=spec.junction_lane_changes,
         standing_ego_courtesy=spec.standing_ego_courtesy,
         perception_noise=spec.perception_noise,
         rho=spec.rho,

@@ -138,6 +138,7 @@ class JunctionClearing:
         self.tl_id = tl_id
         self.exempt = exempt
         self.cleared: set[str] = set()
+        self.inside: list[str] = []  # of ``cleared``, those on an internal lane at the last check
         self.going_first: set[str] = set()
         self._stood_s: dict[str, float] = {}  # [s] caught inside the junction and standing
         self._next_check_s = 0.0
@@ -161,7 +162,7 @@ class JunctionClearing:
             if vid not in self.cleared and vid not in self.exempt and caught(lane, state, self.links):
                 session.set_speed_mode(vid, SPEED_MODE_CLEARING)
                 self.cleared.add(vid)
-        inside = [vid for vid in self.cleared if lanes.get(vid, "").startswith(":")]
+        self.inside = inside = [vid for vid in self.cleared if lanes.get(vid, "").startswith(":")]
         if inside and self.through_after_s is not None:
             self._sort_out_knots(session, inside, lanes, ego)
         if len(self.cleared) > 4096:  # forget the long gone, keep the sets small

@@ -83,3 +83,5 @@ class WorldConfig:
     gridlock_stand_s: float | None = DEFAULT_GRIDLOCK_STAND_S  # [s] sim/gridlock.py; None: off
     standing_ego_courtesy: bool = True  # pedestrians, cyclists and drivers stop for a standing ego (sim/courtesy.py)
     junction_clearing: bool = True  # vehicles caught inside the junction by the end of their green clear it (sim/clearing.py)
+    let_out: bool = True  # drivers entering on green let those caught inside out first (sim/letting_out.py)
+    junction_lane_changes: bool = False  # SUMO's drivers may change lanes inside the junction (an instant jump)

@@ -37,7 +37,11 @@ ahead, :data:`LOOKAHEAD_S` at its speed plus its braking distance from its front
 bring its body into the standing ego is held until its way no longer comes into the ego. SUMO's
 drivers wait for a car standing across their way inside the junction as long as they heed the
 junction's right of way; a vehicle clearing the junction after its green (``sim/clearing.py``) no
-longer does, and no driver runs into a car standing in front of it.
+longer does, and no driver runs into a car standing in front of it. Inside the junction (within
+:data:`SWEEP_NEAR_M` of the ego) a driver also follows its lanes' bend over that reach
+(:func:`sweeping_into`): a car turning right into the exit the ego's left turn also takes, its
+straight way ahead passing beside the ego standing at its waiting point, swept its front into the
+ego (``b_two_lane``, seed 1882941887 of base seed 20261206).
 
 Pure geometry below; :class:`Courtesy` applies it to a session.
 """
@@ -45,13 +49,14 @@ Pure geometry below; :class:`Courtesy` applies it to a session.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import NamedTuple, TypeVar
 
 import numpy as np
 
-from crossroads.geometry import FloatArray
+from crossroads.geometry import FloatArray, point_at, polyline_length
 from crossroads.sim.gridlock import Removal
+from crossroads.sim.look_ahead import footprint_points
 from crossroads.sim.sumo import SumoSession
 
 EGO_STANDING_MPS = 0.5  # [m/s] below this the ego counts as standing
@@ -63,6 +68,7 @@ CYCLIST_DECEL_MPS2 = 3.0  # [m/s²] the world's bicycles brake at this (sim/traf
 CYCLIST_STANDOFF_S = 8.0  # [s] a cyclist held this long by a still standing ego goes round it
 CAR_DECEL_MPS2 = 4.5  # [m/s²] the world's cars brake at this (sim/traffic.py vType)
 CAR_SPARE_M = 0.2  # [m] kept between a held car's side and the ego, beyond half its width
+SWEEP_NEAR_M = 12.0  # [m] cars inside the junction farther from the ego are not followed along their lanes
 NEAR_CAR_M = 40.0  # [m] no car farther from the ego's centre is checked (14 m/s: 36 m reach)
 _SAMPLES = np.linspace(0.0, 1.0, 8)  # points along the way ahead checked against the footprint
 NEAR_M = 8.0  # [m] nobody farther from the ego's centre is checked
@@ -139,6 +145,33 @@ def riding_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: floa
                        cyclist_reach(speed), CYCLIST_MARGIN_M)
 
 
+def sweeping_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
+                  way: FloatArray, length: float, width: float, reach: float) -> bool:
+    """Whether a car whose front bumper follows ``way`` ((n, 2) [m]: its lanes ahead, from its
+    front) would, within ``reach`` [m] (at least :data:`LOOKAHEAD_MIN_M`) along it, bring its body
+    within :data:`CAR_SPARE_M` of the ego's footprint, and is not there already. Unlike
+    :func:`driving_into` it follows the lane's bend: a car turning through the junction sweeps into
+    a car standing where its straight way ahead passes beside it."""
+    ahead = min(max(reach, LOOKAHEAD_MIN_M), polyline_length(way))
+    s = np.linspace(0.0, ahead, 8)
+    fronts = np.array([point_at(way, q) for q in s])
+    behind = np.array([point_at(way, q - 1.0) for q in s])  # a metre back along the way: its heading there
+    headings = np.arctan2(fronts[:, 1] - behind[:, 1], fronts[:, 0] - behind[:, 0])
+    start = s < 1.0  # no way behind the front: the heading of its first metre
+    if start.any():
+        first = point_at(way, 1.0) - fronts[0]
+        headings[start] = math.atan2(first[1], first[0])
+    cx = fronts[:, 0] - 0.5 * length * np.cos(headings)
+    cy = fronts[:, 1] - 0.5 * length * np.sin(headings)
+    px, py = footprint_points(cx, cy, headings, np.full(len(s), length), np.full(len(s), width))
+    c, si = math.cos(ego_heading), math.sin(ego_heading)
+    dx, dy = px - ego_x, py - ego_y
+    along, across = dx * c + dy * si, -dx * si + dy * c
+    inside = ((np.abs(along) <= 0.5 * ego_length + CAR_SPARE_M)
+              & (np.abs(across) <= 0.5 * ego_width + CAR_SPARE_M)).any(axis=1)
+    return bool(inside[1:].any() and not inside[0])
+
+
 def driving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
                  x: FloatArray, y: FloatArray, heading: FloatArray, speed: FloatArray,
                  length: FloatArray, width: FloatArray) -> np.ndarray:
@@ -204,11 +237,13 @@ class Courtesy:
                                        session.hold_person, session.release_person)
 
     def update(self, session: SumoSession, pedestrians: Movers, cyclists: Movers,
-               ego: tuple[float, float, float, float, float, float], cars: Cars = NO_CARS) -> list[Removal]:
+               ego: tuple[float, float, float, float, float, float], cars: Cars = NO_CARS,
+               car_ways: Mapping[str, FloatArray] | None = None) -> list[Removal]:
         """``ego``: its (x, y, heading, speed, length, width). Holds and releases through
         ``session`` (pedestrians by their walking speed, cyclists and cars as the vehicles they
         are, braking as SUMO lets them); returns the cyclists taken out (held
-        :data:`CYCLIST_STANDOFF_S`)."""
+        :data:`CYCLIST_STANDOFF_S`). ``car_ways``: for the cars of ``cars`` inside the junction
+        near the ego, their way ahead along their lanes (:func:`sweeping_into`)."""
         if not self.enabled:
             return []
         self._hold_pedestrians(session, pedestrians, ego)
@@ -222,6 +257,8 @@ class Courtesy:
             session.set_speed(vid, -1.0)
 
         now = _who(cars if standing else _only(cars, self.held_cars), ego, driving_into, NEAR_CAR_M)
+        if car_ways:
+            now |= _sweeping(cars, car_ways, ego, None if standing else self.held_cars)
         self.held_cars = _apply(now, self.held_cars, cars.ids, hold, release)
         now = _who(cyclists if standing else _only(cyclists, set(self.held_cyclists)), ego, riding_into)
         kept = _apply(now, set(self.held_cyclists), cyclists.ids, hold, release)
@@ -248,6 +285,22 @@ def _who(movers: Movers | Cars, ego: tuple[float, float, float, float, float, fl
         return set()
     into = test(ego_x, ego_y, ego_heading, length, width, *(np.asarray(c)[near] for c in movers[1:]))
     return {str(movers.ids[r]) for r in near[into]}
+
+
+def _sweeping(cars: Cars, ways: Mapping[str, FloatArray],
+              ego: tuple[float, float, float, float, float, float], only: set[str] | None) -> set[str]:
+    """Who among ``cars`` with a way in ``ways`` (and in ``only``, unless None) would sweep into
+    the ego along it (:func:`sweeping_into`)."""
+    ego_x, ego_y, ego_heading, _, length, width = ego
+    found = set()
+    for r, pid in enumerate(map(str, cars.ids.tolist())):
+        way = ways.get(pid)
+        if way is None or (only is not None and pid not in only):
+            continue
+        if sweeping_into(ego_x, ego_y, ego_heading, length, width, way, float(cars.length[r]),
+                         float(cars.width[r]), float(car_reach(cars.speed[r]))):
+            found.add(pid)
+    return found
 
 
 def _only(movers: MoversT, ids: set[str]) -> MoversT:

@@ -18,9 +18,10 @@ from pathlib import Path
 
 from crossroads.constants import SIM_STEP_S
 from crossroads.network.road import Junction
-from crossroads.sim.clearing import JunctionClearing
+from crossroads.sim.clearing import JunctionClearing, session_movement_links
 from crossroads.sim.gridlock import GridlockBreaker
 from crossroads.sim.lane_flow import LaneFlow, LaneFlowCounter
+from crossroads.sim.letting_out import LettingOut, incoming_lanes
 from crossroads.sim.sumo import SumoSession
 from crossroads.sim.traffic import TrafficDemand, build_plan, write_plan
 
@@ -55,11 +56,13 @@ class FlowReport:
 
 def measure_flow(junction: Junction, demand: TrafficDemand, work_dir: Path, *, seed: int,
                  warmup_s: float, window_s: float, gridlock_stand_s: float | None,
-                 junction_clearing: bool = True, per_lane: bool = False) -> FlowReport:
+                 junction_clearing: bool = True, let_out: bool = True, junction_lane_changes: bool = False,
+                 per_lane: bool = False) -> FlowReport:
     """Run the world of ``junction`` with ``demand`` (seeded) for ``warmup_s`` + ``window_s`` [s],
     no ego, and measure its flow over the window (see the module's docstring); the gridlock
-    breaker and the junction clearing (sim/clearing.py) as the world's; ``per_lane`` adds each
-    entrance lane's figures (:class:`LaneFlow`)."""
+    breaker, the junction clearing (sim/clearing.py), the letting out (sim/letting_out.py) and
+    the lane changes inside the junction as the world's; ``per_lane`` adds each entrance lane's
+    figures (:class:`LaneFlow`)."""
     plan = build_plan(junction, demand, seed=seed, duration_s=warmup_s + window_s)
     routes = write_plan(plan, work_dir / "flow.rou.xml")
     kind_of = {d.id: d.kind for d in plan.departures}
@@ -69,12 +72,17 @@ def measure_flow(junction: Junction, demand: TrafficDemand, work_dir: Path, *, s
     breaker = GridlockBreaker(junction, gridlock_stand_s)
     with SumoSession().start(junction.net_file, [routes], seed=seed) as session:
         clearing = JunctionClearing(session, junction.tl_id, enabled=junction_clearing)
+        if not junction_lane_changes:
+            session.forbid_lane_changes(session_movement_links(session, junction.tl_id))
+        letting_out = LettingOut(incoming_lanes(session.tl_controlled_links(junction.tl_id)),
+                                 enabled=let_out and junction_clearing)
         lane_counter = (LaneFlowCounter(junction, warmup_s, lambda vid: kind_of.get(vid) == "vehicle")
                         if per_lane else None)
         alive: set[str] = set()
         for _ in range(int(round((warmup_s + window_s) / SIM_STEP_S))):
             session.step()
             clearing.update(session)
+            letting_out.update(session, lambda: clearing.inside)
             if lane_counter is not None:
                 lane_counter.update(session, SIM_STEP_S)
             counting = session.time_s > warmup_s

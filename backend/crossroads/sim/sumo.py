@@ -36,7 +36,7 @@ import functools
 import math
 import os
 import tempfile
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from itertools import chain
@@ -765,6 +765,15 @@ class SumoSession:
         return libsumo.vehicle.getLanePosition(vehicle_id)
 
     @_sumo_errors
+    def vehicle_next_link(self, vehicle_id: str) -> tuple[str, str] | None:
+        """(internal lane, light state) of the next link on the vehicle's way, as SUMO's
+        ``getNextLinks`` gives its first; None when it has none ahead on its lane."""
+        links = libsumo.vehicle.getNextLinks(vehicle_id)
+        if not links:
+            return None
+        return str(links[0][4]), str(links[0][5])  # (lane, priority, open, foe, via, state, dir, length)
+
+    @_sumo_errors
     def vehicle_class(self, vehicle_id: str) -> str:
         return libsumo.vehicle.getVehicleClass(vehicle_id)
 
@@ -911,6 +920,18 @@ class SumoSession:
     @_sumo_errors
     def lane_allowed(self, lane_id: str) -> tuple[str, ...]:
         return tuple(libsumo.lane.getAllowed(lane_id))
+
+    @_sumo_errors
+    def forbid_lane_changes(self, lane_ids: Iterable[str]) -> None:
+        """No vehicle changes lanes from any of ``lane_ids``, to either side, from now on (SUMO's
+        lane change permissions, left to the class ``ignoring`` alone, which no participant has)."""
+        for lane in lane_ids:
+            libsumo.lane.setChangePermissions(lane, ["ignoring"], 1)  # SUMO then lists no class
+            libsumo.lane.setChangePermissions(lane, ["ignoring"], -1)
+
+    @_sumo_errors
+    def lane_length(self, lane_id: str) -> float:
+        return libsumo.lane.getLength(lane_id)
 
     @_sumo_errors
     def lane_shape(self, lane_id: str) -> NDArray[np.float64]:

@@ -34,12 +34,14 @@ from crossroads.planning import CandidatePath, plan_candidates
 from crossroads.sim.abnormal import AbnormalTraffic, injected_departures, with_departures
 from crossroads.sim.blocking import BlockedBy, held_whole_episode, nearest_barrier
 from crossroads.sim.config import WorldConfig
-from crossroads.sim.clearing import JunctionClearing, Pose
+from crossroads.sim.clearing import JunctionClearing, Pose, caught, remaining_way, session_movement_links
 from crossroads.sim.courtesy import EGO_STANDING_MPS, Cars, Courtesy, Movers
 from crossroads.sim.courtesy import NEAR_M as COURTESY_NEAR_M
+from crossroads.sim.courtesy import SWEEP_NEAR_M
 from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
 from crossroads.sim.gridlock import GridlockBreaker
+from crossroads.sim.letting_out import LettingOut, incoming_lanes
 from crossroads.sim.look_ahead import LookAhead
 from crossroads.sim.observation import GroundTruth, LaneShapes, LightView, Observation, Perceived
 from crossroads.sim.outcome import Outcome
@@ -158,6 +160,9 @@ class World:
         self.sumo_driver: SumoDriver | None = None  # set by reset(): SUMO drives the ego
         self.events: list[dict[str, object]] = []  # the world's own events of the episode
         self._clearing_links: dict[str, frozenset[int]] | None = None  # sim/clearing.py, read at the first reset
+        self._incoming_lanes: frozenset[str] | None = None  # sim/letting_out.py, read at the first reset
+        self._internal_lanes: frozenset[str] | None = None  # the junction's, read at the first reset
+        self._sumo_lane_shapes: dict[str, FloatArray] = {}  # the net's lanes' shapes, as read
         self._truth: GroundTruth | None = None  # the true state of the last step (World.truth)
 
     # --- set-up ----------------------------------------------------------------------------
@@ -217,6 +222,12 @@ class World:
         self._clearing = JunctionClearing(self.session, self.program.tl_id, enabled=cfg.junction_clearing,
                                           links=self._clearing_links, exempt=frozenset({EGO_ID}))
         self._clearing_links = self._clearing.links  # the net's: read once, kept for the next reset
+        if not cfg.junction_lane_changes:
+            self.session.forbid_lane_changes(self._junction_lanes())
+        if self._incoming_lanes is None:
+            self._incoming_lanes = incoming_lanes(self.session.tl_controlled_links(self.program.tl_id))
+        self._letting_out = LettingOut(self._incoming_lanes, enabled=cfg.let_out and cfg.junction_clearing,
+                                       exempt=frozenset({EGO_ID}))
         self._courtesy = Courtesy(cfg.standing_ego_courtesy)
         self._look_ahead = LookAhead(EGO_ID, sumo_driver is not None and sumo_driver.look_ahead)
         for _ in range(int(round(cfg.warmup_s / SIM_STEP_S))):
@@ -224,6 +235,8 @@ class World:
             self.abnormal.update(self.session)
             self._gridlocks.update(self.session)
             self._clearing.update(self.session)
+            self._letting_out.update(self.session, lambda: self._clearing.inside,
+                                     abnormal=self.abnormal.abnormal_ids)
         self.signal_offset_s = apply_start(self.session, self.program, *self.start_phase)
         x, y, heading = self._start_pose()
         self._hold_start_zone(x, y, heading)  # first: _clear_spawn steps SUMO, which inserts
@@ -360,6 +373,7 @@ class World:
             self._release_start_zone()
         self.events.extend(r.to_event(self.time_s) for r in self._gridlocks.update(self.session))
         self._clearing.update(self.session, self._ego_pose())
+        self._letting_out.update(self.session, self._caught_inside, abnormal=self._abnormal_ids)
         snap = self.session.snapshot()
         around = self._around(snap)
         obs = self._observe(snap, around)
@@ -373,6 +387,23 @@ class World:
         if self.outcome is None and self.sumo_driver is not None and self.sumo_driver.clear_junction:
             self._let_sumo_driver_clear(obs.light.light)
         return obs, self.outcome
+
+    def _junction_lanes(self) -> frozenset[str]:
+        """The internal lanes of the traffic light's links (those after an internal junction
+        included); a property of the net, read once."""
+        if self._internal_lanes is None:
+            links = self._clearing_links or session_movement_links(self.session, self.program.tl_id)
+            self._internal_lanes = frozenset(links)
+        return self._internal_lanes
+
+    def _caught_inside(self) -> list[str]:
+        """Who is inside the junction with its movement's light no longer green: the world's
+        caught vehicles (sim/clearing.py) and the ego, whoever drives it (sim/letting_out.py)."""
+        inside = list(self._clearing.inside)
+        if caught(self.session.vehicle_lane(EGO_ID), self.session.tl_state(self.program.tl_id),
+                  self._clearing.links):
+            inside.append(EGO_ID)
+        return inside
 
     def _ego_pose(self) -> Pose:
         """The ego as the world's rules read it: (x, y, heading [rad], speed [m/s], length, width)."""
@@ -428,9 +459,30 @@ class World:
         cars = Cars(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows],
                     snap.length[rows], snap.width[rows])
         removals = self._courtesy.update(self.session, movers(is_pedestrian), movers(snap.kind_code == _CYCLIST),
-                                         ego, cars)
+                                         ego, cars, self._ways_through_junction(snap, rows))
         self.events.extend(r.to_event(self.time_s) for r in removals)
         return bool(removals)
+
+    def _ways_through_junction(self, snap: Snapshot, rows: np.ndarray) -> dict[str, FloatArray]:
+        """The way ahead along their lanes (sim/clearing.py's remaining way) of the cars among
+        ``rows`` of ``snap`` inside the junction within SWEEP_NEAR_M of the ego, for the courtesy
+        to follow their bend (sim/courtesy.py's ``sweeping_into``)."""
+        near = rows[np.hypot(snap.x[rows] - self.ego[0], snap.y[rows] - self.ego[1]) < SWEEP_NEAR_M]
+        ways = {}
+        for r in near.tolist():
+            vid = str(snap.ids[r])
+            lane = self.session.vehicle_lane(vid)
+            if lane.startswith(":"):
+                ways[vid] = remaining_way(lane, self.session.vehicle_lane_position(vid), self._lane_shape,
+                                          self.session.lane_next)
+        return ways
+
+    def _lane_shape(self, lane: str) -> FloatArray:
+        """A lane's shape, read from SUMO once per net."""
+        shape = self._sumo_lane_shapes.get(lane)
+        if shape is None:
+            shape = self._sumo_lane_shapes[lane] = self.session.lane_shape(lane)
+        return shape
 
     def _read_sumo_ego(self) -> None:
         """The ego's state from SUMO, which drove it this step (policy ``sumo``)."""
