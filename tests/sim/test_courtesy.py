@@ -21,9 +21,11 @@ from crossroads.sim.courtesy import (
     cyclist_reach,
     driving_into,
     riding_into,
+    WayAhead,
     sweeping_into,
     walking_into,
 )
+from crossroads.geometry import arc_lengths
 from crossroads.sim.sumo import SumoSession
 from crossroads.sim.traffic import VTYPES_XML
 
@@ -102,6 +104,10 @@ def test_a_car_turning_into_the_standing_ego_sweeps_into_it_where_its_straight_w
     assert not sweeping_into(*ego, away, 4.5, 1.8, reach=6.0)
     touching = (1.0, 1.5, 0.0, 4.8, 2.0)  # the ego already beside its front: the judge's business
     assert not sweeping_into(*touching, way, 4.5, 1.8, reach=6.0)
+    # a metre on along a longer way: the same as the way cut there
+    longer = _arc(0.0, 8.0, 8.0, -97.2, 0.0)  # 1 m more of the circle before the front
+    assert sweeping_into(*ego, longer, 4.5, 1.8, reach=6.0, start_m=1.005)
+    assert not sweeping_into(*ego, longer, 4.5, 1.8, reach=1.0, start_m=1.005)
 
 
 def test_cars_inside_the_junction_held_when_their_lane_bends_into_the_standing_ego() -> None:
@@ -111,7 +117,8 @@ def test_cars_inside_the_junction_held_when_their_lane_bends_into_the_standing_e
     ego = (6.5, 4.0, np.pi / 2, 0.0, 4.8, 2.0)
     rule.update(session, nobody, nobody, ego, cars)  # type: ignore[arg-type]
     assert not rule.held_cars  # its straight way ahead passes the ego
-    rule.update(session, nobody, nobody, ego, cars, {"turning": _arc(0.0, 8.0, 8.0, -90.0, 0.0)})  # type: ignore[arg-type]
+    way = _arc(0.0, 8.0, 8.0, -90.0, 0.0)
+    rule.update(session, nobody, nobody, ego, cars, {"turning": WayAhead(way, arc_lengths(way), 0.0)})  # type: ignore[arg-type]
     assert rule.held_cars == {"turning"}
 
 

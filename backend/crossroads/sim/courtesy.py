@@ -54,7 +54,7 @@ from typing import NamedTuple, TypeVar
 
 import numpy as np
 
-from crossroads.geometry import FloatArray, point_at, polyline_length
+from crossroads.geometry import FloatArray, arc_lengths
 from crossroads.sim.gridlock import Removal
 from crossroads.sim.look_ahead import footprint_points
 from crossroads.sim.sumo import SumoSession
@@ -146,21 +146,24 @@ def riding_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: floa
 
 
 def sweeping_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
-                  way: FloatArray, length: float, width: float, reach: float) -> bool:
-    """Whether a car whose front bumper follows ``way`` ((n, 2) [m]: its lanes ahead, from its
-    front) would, within ``reach`` [m] (at least :data:`LOOKAHEAD_MIN_M`) along it, bring its body
-    within :data:`CAR_SPARE_M` of the ego's footprint, and is not there already. Unlike
-    :func:`driving_into` it follows the lane's bend: a car turning through the junction sweeps into
-    a car standing where its straight way ahead passes beside it."""
-    ahead = min(max(reach, LOOKAHEAD_MIN_M), polyline_length(way))
-    s = np.linspace(0.0, ahead, 8)
-    fronts = np.array([point_at(way, q) for q in s])
-    behind = np.array([point_at(way, q - 1.0) for q in s])  # a metre back along the way: its heading there
-    headings = np.arctan2(fronts[:, 1] - behind[:, 1], fronts[:, 0] - behind[:, 0])
-    start = s < 1.0  # no way behind the front: the heading of its first metre
-    if start.any():
-        first = point_at(way, 1.0) - fronts[0]
-        headings[start] = math.atan2(first[1], first[0])
+                  way: FloatArray, length: float, width: float, reach: float, *, start_m: float = 0.0,
+                  cum: FloatArray | None = None) -> bool:
+    """Whether a car whose front bumper follows ``way`` ((n, 2) [m]: its lanes ahead; its front
+    ``start_m`` along it, ``cum`` the way's arc lengths when known) would, within ``reach`` [m] (at
+    least :data:`LOOKAHEAD_MIN_M`) along it, bring its body within :data:`CAR_SPARE_M` of the ego's
+    footprint, and is not there already. Unlike :func:`driving_into` it follows the lane's bend: a
+    car turning through the junction sweeps into a car standing where its straight way ahead passes
+    beside it."""
+    cum = arc_lengths(way) if cum is None else cum
+    s = start_m + np.linspace(0.0, max(min(max(reach, LOOKAHEAD_MIN_M), float(cum[-1]) - start_m), 0.0), 8)
+    # the front at each s, and the way's direction over the metre before it (its first metre at the start)
+    back = np.maximum(s - 1.0, start_m)
+    ahead_of_back = np.maximum(back + 1.0, s)
+    fx, fy = np.interp(s, cum, way[:, 0]), np.interp(s, cum, way[:, 1])
+    hx0, hy0 = np.interp(back, cum, way[:, 0]), np.interp(back, cum, way[:, 1])
+    hx1, hy1 = np.interp(ahead_of_back, cum, way[:, 0]), np.interp(ahead_of_back, cum, way[:, 1])
+    headings = np.arctan2(hy1 - hy0, hx1 - hx0)
+    fronts = np.column_stack([fx, fy])
     cx = fronts[:, 0] - 0.5 * length * np.cos(headings)
     cy = fronts[:, 1] - 0.5 * length * np.sin(headings)
     px, py = footprint_points(cx, cy, headings, np.full(len(s), length), np.full(len(s), width))
@@ -238,7 +241,7 @@ class Courtesy:
 
     def update(self, session: SumoSession, pedestrians: Movers, cyclists: Movers,
                ego: tuple[float, float, float, float, float, float], cars: Cars = NO_CARS,
-               car_ways: Mapping[str, FloatArray] | None = None) -> list[Removal]:
+               car_ways: Mapping[str, WayAhead] | None = None) -> list[Removal]:
         """``ego``: its (x, y, heading, speed, length, width). Holds and releases through
         ``session`` (pedestrians by their walking speed, cyclists and cars as the vehicles they
         are, braking as SUMO lets them); returns the cyclists taken out (held
@@ -287,7 +290,16 @@ def _who(movers: Movers | Cars, ego: tuple[float, float, float, float, float, fl
     return {str(movers.ids[r]) for r in near[into]}
 
 
-def _sweeping(cars: Cars, ways: Mapping[str, FloatArray],
+class WayAhead(NamedTuple):
+    """A car's way along its lanes (:func:`sweeping_into`): the polyline [m], its arc lengths [m],
+    and how far along it the car's front is [m]."""
+
+    points: FloatArray
+    cum: FloatArray
+    start_m: float
+
+
+def _sweeping(cars: Cars, ways: Mapping[str, WayAhead],
               ego: tuple[float, float, float, float, float, float], only: set[str] | None) -> set[str]:
     """Who among ``cars`` with a way in ``ways`` (and in ``only``, unless None) would sweep into
     the ego along it (:func:`sweeping_into`)."""
@@ -297,8 +309,9 @@ def _sweeping(cars: Cars, ways: Mapping[str, FloatArray],
         way = ways.get(pid)
         if way is None or (only is not None and pid not in only):
             continue
-        if sweeping_into(ego_x, ego_y, ego_heading, length, width, way, float(cars.length[r]),
-                         float(cars.width[r]), float(car_reach(cars.speed[r]))):
+        if sweeping_into(ego_x, ego_y, ego_heading, length, width, way.points, float(cars.length[r]),
+                         float(cars.width[r]), float(car_reach(cars.speed[r])), start_m=way.start_m,
+                         cum=way.cum):
             found.add(pid)
     return found
 

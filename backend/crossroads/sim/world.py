@@ -25,7 +25,7 @@ from shapely.geometry import LineString
 from shapely.ops import unary_union
 
 from crossroads.constants import EGO_LENGTH_M, EGO_WIDTH_M, SIM_STEP_S
-from crossroads.geometry import FloatArray
+from crossroads.geometry import FloatArray, arc_lengths
 from crossroads.network.junction import read_junction
 from crossroads.network.road import Approach, Junction, Lane
 from crossroads.perception.noise import add_noise_unchecked
@@ -37,7 +37,7 @@ from crossroads.sim.config import WorldConfig
 from crossroads.sim.clearing import JunctionClearing, Pose, caught, remaining_way, session_movement_links
 from crossroads.sim.courtesy import EGO_STANDING_MPS, Cars, Courtesy, Movers
 from crossroads.sim.courtesy import NEAR_M as COURTESY_NEAR_M
-from crossroads.sim.courtesy import SWEEP_NEAR_M
+from crossroads.sim.courtesy import SWEEP_NEAR_M, WayAhead
 from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
 from crossroads.sim.gridlock import GridlockBreaker
@@ -162,7 +162,7 @@ class World:
         self._clearing_links: dict[str, frozenset[int]] | None = None  # sim/clearing.py, read at the first reset
         self._incoming_lanes: frozenset[str] | None = None  # sim/letting_out.py, read at the first reset
         self._internal_lanes: frozenset[str] | None = None  # the junction's, read at the first reset
-        self._sumo_lane_shapes: dict[str, FloatArray] = {}  # the net's lanes' shapes, as read
+        self._ways_from: dict[str, tuple[FloatArray, FloatArray]] = {}  # _way_from's, per internal lane
         self._truth: GroundTruth | None = None  # the true state of the last step (World.truth)
 
     # --- set-up ----------------------------------------------------------------------------
@@ -463,26 +463,28 @@ class World:
         self.events.extend(r.to_event(self.time_s) for r in removals)
         return bool(removals)
 
-    def _ways_through_junction(self, snap: Snapshot, rows: np.ndarray) -> dict[str, FloatArray]:
-        """The way ahead along their lanes (sim/clearing.py's remaining way) of the cars among
-        ``rows`` of ``snap`` inside the junction within SWEEP_NEAR_M of the ego, for the courtesy
-        to follow their bend (sim/courtesy.py's ``sweeping_into``)."""
+    def _ways_through_junction(self, snap: Snapshot, rows: np.ndarray) -> dict[str, WayAhead]:
+        """The way along their lanes (sim/clearing.py's remaining way, from their lane's start) of
+        the cars among ``rows`` of ``snap`` inside the junction within SWEEP_NEAR_M of the ego, for
+        the courtesy to follow their bend (sim/courtesy.py's ``sweeping_into``)."""
         near = rows[np.hypot(snap.x[rows] - self.ego[0], snap.y[rows] - self.ego[1]) < SWEEP_NEAR_M]
         ways = {}
         for r in near.tolist():
             vid = str(snap.ids[r])
             lane = self.session.vehicle_lane(vid)
             if lane.startswith(":"):
-                ways[vid] = remaining_way(lane, self.session.vehicle_lane_position(vid), self._lane_shape,
-                                          self.session.lane_next)
+                points, cum = self._way_from(lane)
+                ways[vid] = WayAhead(points, cum, self.session.vehicle_lane_position(vid))
         return ways
 
-    def _lane_shape(self, lane: str) -> FloatArray:
-        """A lane's shape, read from SUMO once per net."""
-        shape = self._sumo_lane_shapes.get(lane)
-        if shape is None:
-            shape = self._sumo_lane_shapes[lane] = self.session.lane_shape(lane)
-        return shape
+    def _way_from(self, lane: str) -> tuple[FloatArray, FloatArray]:
+        """The way from the start of internal ``lane`` out of the junction, and its arc lengths;
+        a property of the net, worked out once per lane."""
+        way = self._ways_from.get(lane)
+        if way is None:
+            points = remaining_way(lane, 0.0, self.session.lane_shape, self.session.lane_next)
+            way = self._ways_from[lane] = (points, arc_lengths(points))
+        return way
 
     def _read_sumo_ego(self) -> None:
         """The ego's state from SUMO, which drove it this step (policy ``sumo``)."""
