@@ -38,6 +38,7 @@ from collections.abc import Callable, Iterable, Sequence
 import numpy as np
 
 from crossroads.geometry import FloatArray, distances_to_polyline, sub_polyline
+from crossroads.sim.cadence import Every
 from crossroads.sim.look_ahead import footprint_points
 from crossroads.sim.sumo import (
     GREEN_LINK_STATES,
@@ -141,7 +142,7 @@ class JunctionClearing:
         self.inside: list[str] = []  # of ``cleared``, those on an internal lane at the last check
         self.going_first: set[str] = set()
         self._stood_s: dict[str, float] = {}  # [s] caught inside the junction and standing
-        self._next_check_s = 0.0
+        self._check = Every(CHECK_EVERY_S)
         self.links: dict[str, frozenset[int]] = {}
         if enabled:
             self.links = links if links is not None else session_movement_links(session, tl_id)
@@ -153,9 +154,8 @@ class JunctionClearing:
         if not self.enabled:
             return
         now = session.time_s
-        if now + 1e-9 < self._next_check_s:
+        if not self._check.due(now):
             return
-        self._next_check_s = now + CHECK_EVERY_S
         state = session.tl_state(self.tl_id)
         lanes = session.vehicle_lanes()
         for vid, lane in lanes.items():

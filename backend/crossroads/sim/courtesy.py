@@ -156,16 +156,12 @@ def sweeping_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: fl
     beside it."""
     cum = arc_lengths(way) if cum is None else cum
     s = start_m + np.linspace(0.0, max(min(max(reach, LOOKAHEAD_MIN_M), float(cum[-1]) - start_m), 0.0), 8)
-    # the front at each s, and the way's direction over the metre before it (its first metre at the start)
+    # the front at each s, and the way's direction over the metre behind it (its first metre at the start)
     back = np.maximum(s - 1.0, start_m)
-    ahead_of_back = np.maximum(back + 1.0, s)
     fx, fy = np.interp(s, cum, way[:, 0]), np.interp(s, cum, way[:, 1])
-    hx0, hy0 = np.interp(back, cum, way[:, 0]), np.interp(back, cum, way[:, 1])
-    hx1, hy1 = np.interp(ahead_of_back, cum, way[:, 0]), np.interp(ahead_of_back, cum, way[:, 1])
-    headings = np.arctan2(hy1 - hy0, hx1 - hx0)
-    fronts = np.column_stack([fx, fy])
-    cx = fronts[:, 0] - 0.5 * length * np.cos(headings)
-    cy = fronts[:, 1] - 0.5 * length * np.sin(headings)
+    headings = np.arctan2(np.interp(back + 1.0, cum, way[:, 1]) - np.interp(back, cum, way[:, 1]),
+                          np.interp(back + 1.0, cum, way[:, 0]) - np.interp(back, cum, way[:, 0]))
+    cx, cy = fx - 0.5 * length * np.cos(headings), fy - 0.5 * length * np.sin(headings)
     px, py = footprint_points(cx, cy, headings, np.full(len(s), length), np.full(len(s), width))
     c, si = math.cos(ego_heading), math.sin(ego_heading)
     dx, dy = px - ego_x, py - ego_y

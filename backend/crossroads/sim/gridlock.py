@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from crossroads.network.road import Junction
+from crossroads.sim.cadence import Every
 from crossroads.sim.sumo import SumoSession
 
 CHECK_EVERY_S = 1.0  # [s] how often the breaker looks
@@ -64,7 +65,7 @@ class GridlockBreaker:
         self.stand_s = stand_s
         self._vehicle_lanes = internal_lane_prefixes(junction)
         self._person_lanes = crossing_lane_prefixes(junction)
-        self._next_check_s = 0.0
+        self._check = Every(CHECK_EVERY_S)
 
     def update(self, session: SumoSession) -> list[Removal]:
         """Remove whoever stood too long inside the junction now (at most once per
@@ -72,9 +73,8 @@ class GridlockBreaker:
         if self.stand_s is None:
             return []
         now = session.time_s
-        if now + 1e-9 < self._next_check_s:
+        if not self._check.due(now):
             return []
-        self._next_check_s = now + CHECK_EVERY_S
         removals = []
         for pid, stood, lane in session.standing_on(self._vehicle_lanes, self._person_lanes):
             if stood >= self.stand_s:

@@ -25,13 +25,14 @@ Pure geometry first; :class:`LettingOut` applies it to a session, checked every
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
 
 from crossroads.geometry import FloatArray, distances_to_polyline, resample
-from crossroads.sim.clearing import CHECK_EVERY_S, WAY_MARGIN_M, caught, remaining_way
+from crossroads.sim.cadence import Every
+from crossroads.sim.clearing import CHECK_EVERY_S, WAY_MARGIN_M, remaining_way
 from crossroads.sim.sumo import GREEN_LINK_STATES, SumoSession
 
 LET_OUT_FOR_S = 20.0  # [s] how long after it was caught a vehicle inside the junction is let out
@@ -86,7 +87,7 @@ class LettingOut:
         self.exempt = exempt
         self.waiting: dict[str, frozenset[str]] = {}
         self._caught_since: dict[str, float] = {}  # [s] when each was first seen caught
-        self._next_check_s = 0.0
+        self._check = Every(CHECK_EVERY_S)
         self._shapes: dict[str, FloatArray] = {}
         self._ways: dict[str, FloatArray] = {}
         self._lengths: dict[str, float] = {}
@@ -118,9 +119,8 @@ class LettingOut:
         if not self.enabled:
             return
         now = session.time_s
-        if now + 1e-9 < self._next_check_s:
+        if not self._check.due(now):
             return
-        self._next_check_s = now + CHECK_EVERY_S
         caught_now = set(caught_ids())
         self._caught_since = {vid: self._caught_since.get(vid, now) for vid in caught_now}
         let_out = [vid for vid, since in self._caught_since.items() if now - since <= LET_OUT_FOR_S + 1e-9]
@@ -169,8 +169,3 @@ def incoming_lanes(controlled: Iterable[Iterable[tuple[str, str, str]]]) -> froz
     """The normal lanes a traffic light's links come in on (its controlled links' from-lanes)."""
     return frozenset(src for triples in controlled for src, _, _ in triples if not src.startswith(":"))
 
-
-def caught_inside(lanes: Mapping[str, str], state: str, links: Mapping[str, frozenset[int]]) -> list[str]:
-    """The vehicles of ``lanes`` (id -> lane) on an internal lane of ``links`` whose movement's
-    light has no green left in ``state`` (``sim/clearing.py``'s :func:`caught`)."""
-    return [vid for vid, lane in lanes.items() if caught(lane, state, links)]
