@@ -15,7 +15,9 @@ from crossroads.geometry import (
     cubic_bezier,
     cubic_bezier_derivatives,
     distances_to_polyline,
+    arc_lengths,
     hausdorff_distance,
+    placed_along,
     heading_curvature_from_derivatives,
     project_onto_polyline,
     resample,
@@ -148,3 +150,21 @@ def test_hausdorff_distance_of_a_shifted_polyline_is_at_most_the_shift(dx: float
     assert d <= math.hypot(dx, dy) + 1e-9
     assert hausdorff_distance(shifted, arc) == pytest.approx(d)
     assert hausdorff_distance(arc, arc) == 0.0
+
+
+def test_a_car_placed_along_a_way_points_from_its_back_to_its_front() -> None:
+    # a quarter circle of radius 10 round the origin, from (10, 0) counter-clockwise (1° steps)
+    a = np.radians(np.arange(0.0, 91.0))
+    way = np.column_stack([10.0 * np.cos(a), 10.0 * np.sin(a)])
+    cum = arc_lengths(way)
+    x, y, heading = placed_along(way, cum, np.array([10.0]), 4.0)
+    front = np.array([10.0 * math.cos(1.0), 10.0 * math.sin(1.0)])  # 10 m along: 1 rad round
+    back = np.array([10.0 * math.cos(0.6), 10.0 * math.sin(0.6)])  # the chord to 4 m behind
+    chord = math.atan2(*(front - back)[::-1])
+    assert heading[0] == pytest.approx(chord, abs=1e-3)
+    assert (x[0], y[0]) == pytest.approx(tuple(front - 2.0 * np.array([math.cos(chord), math.sin(chord)])), abs=1e-3)
+    # a front less than a length along: its back on the line of the first segment, before the way
+    x, y, heading = placed_along(way, cum, np.array([0.1]), 4.0)
+    first = math.atan2(way[1, 1] - way[0, 1], way[1, 0] - way[0, 0])
+    assert heading[0] == pytest.approx(first, abs=1e-6)
+    assert (x[0], y[0]) == pytest.approx(tuple(way[0] - 1.9 * np.array([math.cos(first), math.sin(first)])), abs=1e-6)

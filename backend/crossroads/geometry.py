@@ -111,6 +111,30 @@ def sub_polyline(polyline: ArrayLike, s_start: float, s_end: float) -> FloatArra
     return np.vstack([point_at(pts, s0), inner, point_at(pts, s1)])
 
 
+def placed_along(way: FloatArray, cum: FloatArray, front_m: FloatArray,
+                 length: float) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Centres and headings [rad] of a car of ``length`` whose front is ``front_m`` along ``way``
+    (arc lengths ``cum``), placed as SUMO places it: its front on the way, turned toward the point
+    a length behind it on the way (before the way's start: on the line of its first segment)."""
+    fx, fy = along_extended(way, cum, front_m)
+    bx, by = along_extended(way, cum, front_m - length)
+    headings = np.arctan2(fy - by, fx - bx)
+    return fx - 0.5 * length * np.cos(headings), fy - 0.5 * length * np.sin(headings), headings
+
+
+def along_extended(way: FloatArray, cum: FloatArray, s: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The points ``s`` [m] along the polyline ``way`` (arc lengths ``cum``), as x and y arrays;
+    before its start, on the line of its first segment (beyond its end: its end)."""
+    x, y = np.interp(s, cum, way[:, 0]), np.interp(s, cum, way[:, 1])
+    before = s < cum[0]
+    if before.any():
+        first = max(int(np.searchsorted(cum, cum[0], side="right")), 1)  # skip repeated points
+        d = (way[min(first, len(way) - 1)] - way[0]) / max(float(cum[min(first, len(cum) - 1)] - cum[0]), 1e-9)
+        x = np.where(before, way[0, 0] + (s - cum[0]) * d[0], x)
+        y = np.where(before, way[0, 1] + (s - cum[0]) * d[1], y)
+    return x, y
+
+
 def start_heading(polyline: ArrayLike) -> float:
     """Heading of the first segment of a polyline."""
     pts = drop_repeated_points(polyline)

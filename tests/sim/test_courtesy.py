@@ -20,12 +20,13 @@ from crossroads.sim.courtesy import (
     car_reach,
     cyclist_reach,
     driving_into,
+    following,
     riding_into,
     WayAhead,
     sweeping_into,
     walking_into,
 )
-from crossroads.geometry import arc_lengths
+from crossroads.geometry import arc_lengths, placed_along
 from crossroads.sim.sumo import SumoSession
 from crossroads.sim.traffic import VTYPES_XML
 
@@ -102,8 +103,9 @@ def test_a_car_turning_into_the_standing_ego_sweeps_into_it_where_its_straight_w
     assert not sweeping_into(*ego, way, 4.5, 1.8, reach=1.0)  # not within a metre
     away = _arc(0.0, -8.0, 8.0, 90.0, 0.0)  # the same car turning right, the other way
     assert not sweeping_into(*ego, away, 4.5, 1.8, reach=6.0)
-    touching = (1.0, 1.5, 0.0, 4.8, 2.0)  # the ego already beside its front: the judge's business
-    assert not sweeping_into(*touching, way, 4.5, 1.8, reach=6.0)
+    # the ego already beside its front, within the spare: turning on brings it further in
+    beside = (1.0, 1.5, 0.0, 4.8, 2.0)
+    assert sweeping_into(*beside, way, 4.5, 1.8, reach=6.0)
     # a metre on along a longer way: the same as the way cut there
     longer = _arc(0.0, 8.0, 8.0, -97.2, 0.0)  # 1 m more of the circle before the front
     assert sweeping_into(*ego, longer, 4.5, 1.8, reach=6.0, start_m=1.005)
@@ -315,3 +317,49 @@ def test_a_pedestrian_held_beside_the_ego_does_not_walk_into_it_as_it_pulls_away
         outcomes[mode] = json.loads(done.stdout.strip().splitlines()[-1])
     assert outcomes["off"] == ["collision", "hit pedestrian ped4"], outcomes
     assert outcomes["on"][0] != "collision", outcomes
+
+
+def test_a_car_standing_within_the_spare_may_not_turn_further_in() -> None:
+    # a_single_lane's left turn, seed 1101115134 (base seed 20261206): a left-turner on its internal
+    # lane stood 0.07 m from the standing ego's corner for a minute, then drove off into it. Its
+    # way (the lane's points round its front), the ego's pose, the car 4.5 m x 1.8 m, 5.088 m along:
+    way = np.array([(-3.5, 5.94), (-3.8, 5.54), (-4.11, 5.16), (-4.44, 4.79), (-4.79, 4.44), (-5.16, 4.11),
+                    (-5.54, 3.8), (-5.94, 3.5), (-6.35, 3.23), (-6.77, 2.98), (-7.21, 2.75), (-7.5, 2.61),
+                    (-7.5, 2.61), (-7.66, 2.54), (-8.12, 2.36), (-8.58, 2.2), (-9.06, 2.06)])
+    ego = (-5.248, -0.078, 2.64, 4.8, 2.0)
+    assert sweeping_into(*ego, way, 4.5, 1.8, reach=car_reach(np.array([0.0]))[0], start_m=5.088)
+    # placed as SUMO placed it: centre (-5.586, 4.089), heading -2.468 rad
+    x, y, heading = placed_along(way, arc_lengths(way), np.array([5.088]), 4.5)
+    assert (x[0], y[0], heading[0]) == pytest.approx((-5.586, 4.089, -2.468), abs=0.01)
+
+
+def test_a_car_alongside_within_the_spare_driving_past_is_not_held() -> None:
+    # a straight way along y = 0 past the ego standing 1.9 m to its side (0.1 m within the spare)
+    way = np.column_stack([np.linspace(-10.0, 10.0, 21), np.zeros(21)])
+    ego = (0.0, 1.9, 0.0, 4.8, 2.0)
+    assert not sweeping_into(*ego, way, 4.5, 1.8, reach=6.0, start_m=10.0)  # alongside: stays as near
+    assert sweeping_into(*ego, way, 4.5, 1.8, reach=6.0, start_m=4.0)  # behind: would come alongside
+
+
+def test_a_car_behind_the_ego_heading_its_way_follows_it() -> None:
+    ego = (0.0, 0.0, 0.0, 4.8, 2.0, 5.0)  # heading east, moving
+    xs, ys = np.array([-7.0, -7.0, 7.0, -7.0, -20.0]), np.array([0.0, 1.5, 0.0, 0.0, 0.0])
+    headings = np.array([0.0, 0.5, 0.0, np.pi, 0.0])
+    # behind in its lane; behind, merging; ahead; behind, heading the other way; too far behind
+    assert following(ego, xs, ys, headings).tolist() == [True, True, False, False, False]
+
+
+def test_a_moving_ego_holds_the_car_following_it_that_would_drive_into_it() -> None:
+    session = _Recorder()
+    rule = Courtesy()
+    ego = (0.0, 0.0, 0.0, 3.0, 4.8, 2.0)  # moving east at 3 m/s
+    # 6 m behind the ego's centre at 6 m/s: its bumper 1.35 m from the ego's rear, 5.6 m reach
+    behind = Cars(np.array(["c"]), np.array([-6.0]), np.array([0.0]), np.array([0.0]), np.array([6.0]),
+                  np.array([4.5]), np.array([1.8]))
+    crossing = Cars(np.array(["x"]), np.array([5.0]), np.array([-6.0]), np.array([np.pi / 2]), np.array([6.0]),
+                    np.array([4.5]), np.array([1.8]))
+    rule.update(session, NOBODY, NOBODY, ego, behind)  # type: ignore[arg-type]
+    assert rule.held_cars == {"c"}
+    rule = Courtesy()
+    rule.update(session, NOBODY, NOBODY, ego, crossing)  # type: ignore[arg-type]
+    assert rule.held_cars == set()  # one the moving ego drives across: the ego's business

@@ -8,12 +8,16 @@ import math
 import numpy as np
 import pytest
 
+from crossroads.geometry import arc_lengths
+
 from crossroads.sim.look_ahead import (
     BUFFER_M,
     COMFORT_DECEL_MPS2,
     VEHICLE_BUFFER_M,
     VEHICLE_DECEL_MPS2,
+    LATERAL_MARGIN_M,
     LookAhead,
+    body_sweeps_into,
     corridor_length,
     footprint_points,
     in_the_way,
@@ -140,3 +144,49 @@ def test_a_vehicle_in_the_way_stops_the_ego_too() -> None:
     assert rule.update(session, ego, *nobody[:5], vehicles=car)  # type: ignore[arg-type]
     assert not rule.update(session, ego, *nobody[:5], vehicles=nobody)  # type: ignore[arg-type]
     assert session.commands == [("ego", 0.0), ("ego", -1.0)]
+
+
+def _left_turn() -> np.ndarray:
+    """A way straight north up to (0, 0), then a left turn of radius 10 m round (-10, 0) (1° steps)."""
+    a = np.radians(np.arange(0.0, 91.0))
+    turn = np.column_stack([-10.0 + 10.0 * np.cos(a), 10.0 * np.sin(a)])
+    return np.vstack([[(0.0, -10.0)], turn])
+
+
+def _sweeps(way: np.ndarray, front_m: float, car: tuple[float, float, float], reach_m: float = 3.0) -> bool:
+    x, y, heading = car
+    return bool(body_sweeps_into(way, arc_lengths(way), front_m, reach_m, LENGTH, WIDTH, np.array([x]),
+                                 np.array([y]), np.array([heading]), np.array([CAR[0]]), np.array([CAR[1]]))[0])
+
+
+def test_the_ego_turning_sweeps_into_a_car_standing_over_its_bend_that_its_heading_points_past() -> None:
+    way = _left_turn()  # the ego's front at (0, 0) (10 m along), heading north, about to turn left
+    x, y, heading = -4.0, 4.5, -math.pi / 4  # a car standing across the bend, left of the heading's line
+    reach = vehicle_corridor_length(5.0)  # at 5 m/s
+    assert _sweeps(way, 10.0, (x, y, heading), reach_m=reach)
+    assert not vehicles_in_the_way(0.0, -2.4, math.pi / 2, 5.0, LENGTH, WIDTH, np.array([x]), np.array([y]),
+                                   np.array([heading]), np.array([0.0]), np.array([CAR[0]]),
+                                   np.array([CAR[1]]))[0]  # the straight corridor points past it
+    assert not _sweeps(way, 10.0, (x, y, heading), reach_m=0.5)  # not within half a metre
+
+
+def test_a_car_the_ego_leaves_behind_or_keeps_its_distance_from_is_not_swept_into() -> None:
+    way = _left_turn()
+    assert not _sweeps(way, 10.0, (0.0, -10.0, math.pi / 2))  # behind the ego's back, in its lane
+    assert not _sweeps(way, 10.0, (6.0, 2.0, math.pi / 2))  # beside the turn's outside, 6 m off
+    # a car whose side the ego's body is already within the margin of, the ego's way leading it
+    # no nearer (alongside, on a straight way): as near as now is not nearer
+    straight = np.column_stack([np.zeros(41), np.linspace(-20.0, 20.0, 41)])
+    beside = (WIDTH / 2 + CAR[1] / 2 + LATERAL_MARGIN_M / 2, 0.0, math.pi / 2)
+    assert not _sweeps(straight, 22.4, beside)
+
+
+def test_the_swept_body_stops_the_ego_inside_the_junction() -> None:
+    rule, session = LookAhead("ego"), _Session()
+    nobody = (np.array([]), np.array([]), np.array([]), np.array([]), np.array([]))
+    way = _left_turn()
+    car = (np.array([-4.0]), np.array([4.5]), np.array([-math.pi / 4]), np.array([0.0]), np.array([CAR[0]]),
+           np.array([CAR[1]]))
+    ego = (0.0, -2.4, math.pi / 2, 5.0, LENGTH, WIDTH)  # 5 m/s: its corridor 3.8 m
+    assert not rule.update(session, ego, *nobody, vehicles=car)  # type: ignore[arg-type]  # straight: past it
+    assert rule.update(session, ego, *nobody, vehicles=car, way=(way, arc_lengths(way), 10.0))  # type: ignore[arg-type]

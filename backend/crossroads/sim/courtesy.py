@@ -22,10 +22,14 @@ standing across the bike lane, it stands where that car waits to go, and the two
 each other (tried: SUMO's driver then passed only once the gridlock breaker took the cyclist out,
 after 138–159 s).
 
-A moving ego: whoever it drives into is its collision, so it holds no one new, with one exception,
+A moving ego: whoever it drives into is its collision, so it holds no one new, with two exceptions,
 and whoever was held for it stays held, the ego moving or not, as long as its way still comes into
-the ego. The exception: a pedestrian about to walk into the side or rear of the moving ego (its
-footprint but the front :data:`SIDE_FRONT_EXCLUDED_M`) stops too. Both were seen with SUMO's driver
+the ego. The exceptions: a pedestrian about to walk into the side or rear of the moving ego (its
+footprint but the front :data:`SIDE_FRONT_EXCLUDED_M`) stops too; and a car following the ego
+(:func:`following`: near, behind it, heading its way) keeps its distance as from any car ahead. The
+last was seen with SUMO's driver on ``b_two_lane``'s left turn (seed 285310816): a right-turner
+merging behind it into the same exit drove up to 0.04 m from the ego's side as the ego braked, and
+the ego pulling away then swung into it. Both were seen with SUMO's driver
 on ``e_irregular_oblique``'s left turn (base seed 20261206), the car ahead of the standing ego taken
 out by the gridlock breaker and the ego starting: a pedestrian held 0.9 m from its front corner,
 released the moment the ego moved, walked into it 0.5 s later (seed 1311414304), and one walking
@@ -54,7 +58,7 @@ from typing import NamedTuple, TypeVar
 
 import numpy as np
 
-from crossroads.geometry import FloatArray, arc_lengths
+from crossroads.geometry import FloatArray, arc_lengths, placed_along
 from crossroads.sim.gridlock import Removal
 from crossroads.sim.look_ahead import footprint_points
 from crossroads.sim.sumo import SumoSession
@@ -68,6 +72,7 @@ CYCLIST_DECEL_MPS2 = 3.0  # [m/s²] the world's bicycles brake at this (sim/traf
 CYCLIST_STANDOFF_S = 8.0  # [s] a cyclist held this long by a still standing ego goes round it
 CAR_DECEL_MPS2 = 4.5  # [m/s²] the world's cars brake at this (sim/traffic.py vType)
 CAR_SPARE_M = 0.2  # [m] kept between a held car's side and the ego, beyond half its width
+CLOSING_M = 0.01  # [m] how much nearer than now a mover's way must bring it for it to be held
 SWEEP_NEAR_M = 12.0  # [m] cars inside the junction farther from the ego are not followed along their lanes
 NEAR_CAR_M = 40.0  # [m] no car farther from the ego's centre is checked (14 m/s: 36 m reach)
 _SAMPLES = np.linspace(0.0, 1.0, 8)  # points along the way ahead checked against the footprint
@@ -103,9 +108,8 @@ def moving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: floa
                 margin_m: float | FloatArray, front_m: float | None = None) -> np.ndarray:
     """Which of the movers at ``x``, ``y`` heading ``heading`` would, within ``reach`` [m] (at least
     :data:`LOOKAHEAD_MIN_M`), come into the ego's footprint widened by ``margin_m`` (one for all,
-    or one each) — and are not in it already (one already touching it is the judge's business,
-    not this rule's). With ``front_m``, only the part of that footprint at most ``front_m`` ahead
-    of the ego's centre counts (:func:`walking_into_side`)."""
+    or one each) deeper than they are now (:func:`_closing_in`). With ``front_m``, only the part of
+    that footprint at most ``front_m`` ahead of the ego's centre counts (:func:`walking_into_side`)."""
     reach = np.maximum(np.asarray(reach, dtype=float), LOOKAHEAD_MIN_M)
     cos_e, sin_e = math.cos(ego_heading), math.sin(ego_heading)
     margin = np.broadcast_to(np.asarray(margin_m, dtype=float), reach.shape)[:, None]
@@ -118,7 +122,18 @@ def moving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: floa
     across = -dx * sin_e + dy * cos_e
     ahead = half_l if front_m is None else np.minimum(half_l, front_m)
     inside = (along >= -half_l) & (along <= ahead) & (np.abs(across) <= half_w)
-    return inside[:, 1:].any(axis=1) & ~inside[:, 0]
+    return _closing_in(inside, np.maximum(np.abs(along) - half_l, np.abs(across) - half_w))
+
+
+def _closing_in(inside: np.ndarray, depth: FloatArray) -> np.ndarray:
+    """(n,) bool from (n, samples) ``inside`` (a sample within the widened footprint) and ``depth``
+    (its distance outside that footprint's box, negative within), sample 0 being now: who would be
+    inside later, and nearer than :data:`CLOSING_M` closer than now. One standing within the margin
+    already still may not move further in: a driver stood 0.07 m from the ego for a minute and then
+    drove off into its corner (``a_single_lane`` left, seed 1101115134, base seed 20261206); one
+    walking away or past at the same distance may go."""
+    later = inside[:, 1:] & (depth[:, 1:] < depth[:, :1] - CLOSING_M)
+    return later.any(axis=1)
 
 
 def walking_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
@@ -151,24 +166,20 @@ def sweeping_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: fl
     """Whether a car whose front bumper follows ``way`` ((n, 2) [m]: its lanes ahead; its front
     ``start_m`` along it, ``cum`` the way's arc lengths when known) would, within ``reach`` [m] (at
     least :data:`LOOKAHEAD_MIN_M`) along it, bring its body within :data:`CAR_SPARE_M` of the ego's
-    footprint, and is not there already. Unlike :func:`driving_into` it follows the lane's bend: a
+    footprint, closer than it is now (:func:`_closing_in`). Unlike :func:`driving_into` it follows the lane's bend: a
     car turning through the junction sweeps into a car standing where its straight way ahead passes
     beside it."""
     cum = arc_lengths(way) if cum is None else cum
     s = start_m + np.linspace(0.0, max(min(max(reach, LOOKAHEAD_MIN_M), float(cum[-1]) - start_m), 0.0), 8)
-    # the front at each s, and the way's direction over the metre behind it (its first metre at the start)
-    back = np.maximum(s - 1.0, start_m)
-    fx, fy = np.interp(s, cum, way[:, 0]), np.interp(s, cum, way[:, 1])
-    headings = np.arctan2(np.interp(back + 1.0, cum, way[:, 1]) - np.interp(back, cum, way[:, 1]),
-                          np.interp(back + 1.0, cum, way[:, 0]) - np.interp(back, cum, way[:, 0]))
-    cx, cy = fx - 0.5 * length * np.cos(headings), fy - 0.5 * length * np.sin(headings)
+    cx, cy, headings = placed_along(way, cum, s, length)
     px, py = footprint_points(cx, cy, headings, np.full(len(s), length), np.full(len(s), width))
     c, si = math.cos(ego_heading), math.sin(ego_heading)
     dx, dy = px - ego_x, py - ego_y
     along, across = dx * c + dy * si, -dx * si + dy * c
-    inside = ((np.abs(along) <= 0.5 * ego_length + CAR_SPARE_M)
-              & (np.abs(across) <= 0.5 * ego_width + CAR_SPARE_M)).any(axis=1)
-    return bool(inside[1:].any() and not inside[0])
+    # per position, its nearest footprint point's distance outside the ego's widened box
+    depth = np.maximum(np.abs(along) - (0.5 * ego_length + CAR_SPARE_M),
+                       np.abs(across) - (0.5 * ego_width + CAR_SPARE_M)).min(axis=1)
+    return bool(_closing_in((depth <= 0.0)[None, :], depth[None, :])[0])
 
 
 def driving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
@@ -255,9 +266,11 @@ class Courtesy:
         def release(vid: str) -> None:
             session.set_speed(vid, -1.0)
 
-        now = _who(cars if standing else _only(cars, self.held_cars), ego, driving_into, NEAR_CAR_M)
+        # a moving ego: those held before, and those following it
+        looked_at = None if standing else self.held_cars | following_ids(cars, ego)
+        now = _who(cars if looked_at is None else _only(cars, looked_at), ego, driving_into, NEAR_CAR_M)
         if car_ways:
-            now |= _sweeping(cars, car_ways, ego, None if standing else self.held_cars)
+            now |= _sweeping(cars, car_ways, ego, looked_at)
         self.held_cars = _apply(now, self.held_cars, cars.ids, hold, release)
         now = _who(cyclists if standing else _only(cyclists, set(self.held_cyclists)), ego, riding_into)
         kept = _apply(now, set(self.held_cyclists), cyclists.ids, hold, release)
@@ -270,6 +283,23 @@ class Courtesy:
                 session.remove(vid)
                 del self.held_cyclists[vid]
         return removals
+
+
+def following(ego: tuple[float, float, float, float, float, float], x: FloatArray, y: FloatArray,
+              heading: FloatArray) -> np.ndarray:
+    """(n,) bool: which cars (centres, headings [rad]) follow the ego: within
+    :data:`SWEEP_NEAR_M` of its centre, behind it, heading less than a right angle off its heading."""
+    ego_x, ego_y, ego_heading = ego[:3]
+    dx, dy = np.asarray(x) - ego_x, np.asarray(y) - ego_y
+    behind = dx * math.cos(ego_heading) + dy * math.sin(ego_heading) < 0.0
+    return behind & (np.cos(np.asarray(heading) - ego_heading) > 0.0) & (np.hypot(dx, dy) < SWEEP_NEAR_M)
+
+
+def following_ids(cars: Cars, ego: tuple[float, float, float, float, float, float]) -> set[str]:
+    """The ids of the cars :func:`following` the ego."""
+    if not len(cars.ids):
+        return set()
+    return {str(i) for i in cars.ids[following(ego, cars.x, cars.y, cars.heading)]}
 
 
 def _who(movers: Movers | Cars, ego: tuple[float, float, float, float, float, float],

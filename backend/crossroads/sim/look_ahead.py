@@ -38,6 +38,18 @@ opposite left-turner where its turn and the ego's right turn merge into one exit
 nominal and 6 paper scenarios, 30 runs each: collisions 21 → 15 with vehicles looked at now, 15 →
 7 with them looked at 1 s ahead too (docs/results/world.md).
 
+Inside the junction that corridor points along the ego's heading, off the bend of a turn, and
+SUMO's driver does not see its own body swing as it turns: there the ego's body is also placed
+along its way ahead (its lanes, as SUMO places a car: front on the way, turned toward the point a
+length behind), over the vehicles' corridor, and a vehicle it would come nearer than
+:data:`LATERAL_MARGIN_M` to, and nearer than it is now, counts as in the way
+(:func:`body_sweeps_into`). Measured (200 runs per scenario, base seed 20261206): on
+``d_irregular_skewed``'s right turn, whose way comes within 2.5 m of the opposite left-turner's
+before the two merge into one exit lane, SUMO's driver drove into the side of a left-turner standing
+over its way, the straight corridor pointing past it (3 runs, all at 9.3 s); on ``b_two_lane``'s
+left turn, pulling away from its waiting point, it swung its side into the front of a right-turner
+that had stopped beside it (seed 285310816).
+
 Pure geometry below; :class:`LookAhead` applies it to a session.
 """
 
@@ -47,7 +59,7 @@ import math
 
 import numpy as np
 
-from crossroads.geometry import FloatArray
+from crossroads.geometry import FloatArray, placed_along
 from crossroads.sim.sumo import SumoSession
 
 COMFORT_DECEL_MPS2 = 3.0  # [m/s²] the braking the corridor's length allows for
@@ -60,6 +72,8 @@ VEHICLE_DECEL_MPS2 = 4.5  # [m/s²] the braking a vehicle's corridor allows for 
 VEHICLE_BUFFER_M = 1.0  # [m] a vehicle's corridor beyond that braking distance
 VEHICLE_OVERLAP_M = 0.5  # [m] a vehicle's point this far behind the bumper still counts (touching)
 VEHICLE_TIMES_S = (0.0, 0.5, 1.0)  # [s] where vehicles are looked at: now and ahead at their speed
+_SWEEP_SAMPLES = 8  # the ego's placements along its way, now included (body_sweeps_into)
+_CLOSING_M = 0.01  # [m] how much nearer than now counts as coming nearer (body_sweeps_into)
 
 
 def corridor_length(speed_mps: float) -> float:
@@ -133,6 +147,39 @@ def vehicles_in_the_way(ego_x: float, ego_y: float, ego_heading: float, ego_spee
     return out
 
 
+def body_sweeps_into(way: FloatArray, cum: FloatArray, front_m: float, reach_m: float, length: float,
+                     width: float, xs: FloatArray, ys: FloatArray, headings: FloatArray, lengths: FloatArray,
+                     widths: FloatArray) -> np.ndarray:
+    """(n,) bool: which vehicles (centres, headings [rad], lengths, widths) the ego's body, its front
+    moving from ``front_m`` to ``reach_m`` further along ``way`` (arc lengths ``cum``) and placed as
+    SUMO places a car (:func:`~crossroads.geometry.placed_along`), would come within
+    :data:`LATERAL_MARGIN_M` of, nearer than it is at ``front_m`` (module docstring)."""
+    if not len(xs):
+        return np.zeros(0, dtype=bool)
+    s = front_m + np.linspace(0.0, max(reach_m, 0.0), _SWEEP_SAMPLES)
+    cx, cy, ch = placed_along(way, cum, s, length)
+    k = len(s)
+    # the ego's points (k, 9) against every vehicle's box, and every vehicle's points against its boxes
+    epx, epy = footprint_points(cx, cy, ch, np.full(k, length), np.full(k, width))
+    vpx, vpy = footprint_points(xs, ys, headings, lengths, widths)
+    ego_in_them = _outside_box(epx[:, None, :], epy[:, None, :], xs[None, :, None], ys[None, :, None],
+                               headings[None, :, None], lengths[None, :, None], widths[None, :, None])
+    them_in_ego = _outside_box(vpx[None, :, :], vpy[None, :, :], cx[:, None, None], cy[:, None, None],
+                               ch[:, None, None], length, width)
+    gap = np.minimum(ego_in_them.min(axis=2), them_in_ego.min(axis=2))  # (k, n)
+    return ((gap[1:] < LATERAL_MARGIN_M) & (gap[1:] < gap[:1] - _CLOSING_M)).any(axis=0)
+
+
+def _outside_box(px: FloatArray, py: FloatArray, cx: FloatArray, cy: FloatArray, heading: FloatArray,
+                 length: FloatArray | float, width: FloatArray | float) -> FloatArray:
+    """How far [m] each point lies outside the box (centre, heading, length, width), by the larger
+    of its distances beyond the box's ends and sides (negative inside); broadcasts."""
+    c, s = np.cos(heading), np.sin(heading)
+    dx, dy = px - cx, py - cy
+    return np.maximum(np.abs(dx * c + dy * s) - 0.5 * np.asarray(length),
+                      np.abs(dy * c - dx * s) - 0.5 * np.asarray(width))
+
+
 class LookAhead:
     """Applies :func:`in_the_way` to SUMO's driver of the ego, step by step."""
 
@@ -143,11 +190,14 @@ class LookAhead:
 
     def update(self, session: SumoSession, ego: tuple[float, float, float, float, float, float],
                xs: FloatArray, ys: FloatArray, headings: FloatArray, speeds: FloatArray,
-               radii: FloatArray, vehicles: tuple[FloatArray, ...] | None = None) -> bool:
+               radii: FloatArray, vehicles: tuple[FloatArray, ...] | None = None,
+               way: tuple[FloatArray, FloatArray, float] | None = None) -> bool:
         """``ego``: its (x, y, heading, speed, length, width); the pedestrians' and cyclists'
         centres, headings [rad], speeds and radii (:func:`in_the_way`); ``vehicles``: their
-        centres, headings, speeds, lengths and widths (:func:`vehicles_in_the_way`). Commands the stop or
-        hands the ego back to SUMO's driver; whether it is braking now."""
+        centres, headings, speeds, lengths and widths (:func:`vehicles_in_the_way`); ``way``: inside the
+        junction, the ego's way along its lanes, its arc lengths and where the ego's front is on it
+        (:func:`body_sweeps_into`), else None. Commands the stop or hands the ego back to
+        SUMO's driver; whether it is braking now."""
         if not self.enabled:
             return False
         x, y, heading, speed, length, width = ego
@@ -161,6 +211,11 @@ class LookAhead:
             blocked = bool(len(near)) and bool(vehicles_in_the_way(
                 x, y, heading, speed, length, width, vx[near], vy[near], vheading[near], vspeed[near],
                 vlength[near], vwidth[near]).any())
+            if not blocked and way is not None and len(near):
+                points, cum, front_m = way
+                blocked = bool(body_sweeps_into(
+                    points, cum, front_m, vehicle_corridor_length(speed), length, width, vx[near], vy[near],
+                    vheading[near], vlength[near], vwidth[near]).any())
         if blocked != self.braking:
             session.set_speed(self.ego_id, 0.0 if blocked else -1.0)
             self.braking = blocked
