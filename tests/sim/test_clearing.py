@@ -15,7 +15,14 @@ from crossroads.network.road import Junction
 from crossroads.scenario.spec import load_scenario, to_world_config
 import numpy as np
 
-from crossroads.sim.clearing import JunctionClearing, caught, movement_links, remaining_way, way_is_clear
+from crossroads.sim.clearing import (
+    JunctionClearing,
+    caught,
+    movement_links,
+    remaining_way,
+    session_movement_links,
+    way_is_clear,
+)
 from crossroads.sim.gridlock import GridlockBreaker
 from crossroads.sim.sumo import SPEED_MODE_CLEARING, SPEED_MODE_CLEARING_THROUGH, SumoSession
 from crossroads.sim.traffic import build_plan, write_plan
@@ -54,6 +61,16 @@ def _world_without_ego(tmp_path: Path, intersection: str,
     routes = write_plan(plan, tmp_path / "r.rou.xml")
     with SumoSession().start(junction.net_file, [routes], seed=20261206) as session:
         yield session, junction, GridlockBreaker(junction, cfg.gridlock_stand_s)
+
+
+def test_a_session_s_movement_links_reach_a_left_turn_s_part_beyond_its_waiting_point(tmp_path: Path) -> None:
+    # e_irregular_oblique's left turns wait at an internal junction: every internal lane a vehicle
+    # drives on inside the junction belongs to a link, the parts beyond the waiting points included
+    with _world_without_ego(tmp_path, "e_irregular_oblique", 10.0) as (session, junction, _):
+        links = session_movement_links(session, junction.tl_id)
+        beyond = {nxt for lane in links for nxt in session.lane_successors(lane) if nxt.startswith(":")}
+        assert beyond, "the left turns have internal junctions"
+        assert beyond <= set(links)
 
 
 def _first_car_of_the_outer_lane_at_300_s(tmp_path: Path, clearing: bool) -> str:

@@ -349,7 +349,7 @@ def test_a_car_behind_the_ego_heading_its_way_follows_it() -> None:
     assert following(ego, xs, ys, headings).tolist() == [True, True, False, False, False]
 
 
-def test_a_moving_ego_holds_the_car_following_it_that_would_drive_into_it() -> None:
+def test_a_moving_ego_holds_the_cars_following_it_or_heading_for_its_side() -> None:
     session = _Recorder()
     rule = Courtesy()
     ego = (0.0, 0.0, 0.0, 3.0, 4.8, 2.0)  # moving east at 3 m/s
@@ -362,4 +362,11 @@ def test_a_moving_ego_holds_the_car_following_it_that_would_drive_into_it() -> N
     assert rule.held_cars == {"c"}
     rule = Courtesy()
     rule.update(session, NOBODY, NOBODY, ego, crossing)  # type: ignore[arg-type]
-    assert rule.held_cars == set()  # one the moving ego drives across: the ego's business
+    assert rule.held_cars == set()  # one ahead of the moving ego's bumper: the ego's to stop for
+    # one heading for the moving ego's side (its bumper 4.75 m from it, 9.6 m reach) brakes for it
+    side = Cars(np.array(["s"]), np.array([0.0]), np.array([-8.0]), np.array([np.pi / 2]), np.array([6.0]),
+                np.array([4.5]), np.array([1.8]))
+    assert rule.may_act(3.0, side, ego)
+    rule.update(session, NOBODY, NOBODY, ego, side)  # type: ignore[arg-type]
+    assert rule.held_cars == {"s"}
+    assert not Courtesy().may_act(3.0, crossing, ego)

@@ -25,11 +25,13 @@ after 138–159 s).
 A moving ego: whoever it drives into is its collision, so it holds no one new, with two exceptions,
 and whoever was held for it stays held, the ego moving or not, as long as its way still comes into
 the ego. The exceptions: a pedestrian about to walk into the side or rear of the moving ego (its
-footprint but the front :data:`SIDE_FRONT_EXCLUDED_M`) stops too; and a car following the ego
-(:func:`following`: near, behind it, heading its way) keeps its distance as from any car ahead. The
-last was seen with SUMO's driver on ``b_two_lane``'s left turn (seed 285310816): a right-turner
-merging behind it into the same exit drove up to 0.04 m from the ego's side as the ego braked, and
-the ego pulling away then swung into it. Both were seen with SUMO's driver
+footprint but the front :data:`SIDE_FRONT_EXCLUDED_M`) stops too, and so does a car about to drive
+into its side or rear or following it (:func:`following`: near, behind it, heading its way), as
+for any car ahead or crossing in front of it. Seen with SUMO's driver (base seed 20261206): on
+``b_two_lane``'s left turn a right-turner merging behind it into the same exit drove up to 0.04 m
+from the ego's side as the ego braked, and the ego pulling away then swung into it (seed
+285310816); on ``e_irregular_oblique``'s left turn the cross street's first car, braking for the
+ego clearing the junction in front of it, drove off again into its side (seed 1988177980). Both were seen with SUMO's driver
 on ``e_irregular_oblique``'s left turn (base seed 20261206), the car ahead of the standing ego taken
 out by the gridlock breaker and the ego starting: a pedestrian held 0.9 m from its front corner,
 released the moment the ego moved, walked into it 0.5 s later (seed 1311414304), and one walking
@@ -221,11 +223,14 @@ class Courtesy:
         self.held_cyclists: dict[str, float] = {}  # id -> held since [s, SUMO time]
         self.held_cars: set[str] = set()
 
-    def may_act(self, ego_speed: float) -> bool:
-        """Whether :meth:`update` can change anything beyond :meth:`watch_sides`: the ego stands, or
-        someone is held."""
+    def may_act(self, ego_speed: float, cars: Cars = NO_CARS,
+                ego: tuple[float, float, float, float, float, float] | None = None) -> bool:
+        """Whether :meth:`update` can change anything beyond :meth:`watch_sides`: the ego stands,
+        someone is held, or one of ``cars`` follows the moving ``ego`` or is about to drive into its
+        side (:func:`watched_while_moving`)."""
         return self.enabled and (ego_speed < EGO_STANDING_MPS
-                                 or bool(self.held_pedestrians or self.held_cyclists or self.held_cars))
+                                 or bool(self.held_pedestrians or self.held_cyclists or self.held_cars)
+                                 or (ego is not None and bool(watched_while_moving(cars, ego))))
 
     def watch_sides(self, session: SumoSession, pedestrians: Movers,
                     ego: tuple[float, float, float, float, float, float]) -> None:
@@ -266,8 +271,8 @@ class Courtesy:
         def release(vid: str) -> None:
             session.set_speed(vid, -1.0)
 
-        # a moving ego: those held before, and those following it
-        looked_at = None if standing else self.held_cars | following_ids(cars, ego)
+        # a moving ego: those held before, those following it and those about to drive into its side
+        looked_at = None if standing else self.held_cars | watched_while_moving(cars, ego)
         now = _who(cars if looked_at is None else _only(cars, looked_at), ego, driving_into, NEAR_CAR_M)
         if car_ways:
             now |= _sweeping(cars, car_ways, ego, looked_at)
@@ -300,6 +305,27 @@ def following_ids(cars: Cars, ego: tuple[float, float, float, float, float, floa
     if not len(cars.ids):
         return set()
     return {str(i) for i in cars.ids[following(ego, cars.x, cars.y, cars.heading)]}
+
+
+def driving_into_side(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
+                      x: FloatArray, y: FloatArray, heading: FloatArray, speed: FloatArray,
+                      length: FloatArray, width: FloatArray) -> np.ndarray:
+    """:func:`driving_into` a moving ego's sides or rear only, its front
+    :data:`SIDE_FRONT_EXCLUDED_M` left out (a car there is in the ego's way, the ego's to stop for)."""
+    heading = np.asarray(heading, dtype=float)
+    half = 0.5 * np.asarray(length, dtype=float)
+    return moving_into(ego_x, ego_y, ego_heading, ego_length, ego_width,
+                       np.asarray(x) + half * np.cos(heading), np.asarray(y) + half * np.sin(heading),
+                       heading, car_reach(speed), 0.5 * np.asarray(width, dtype=float) + CAR_SPARE_M,
+                       front_m=ego_length / 2.0 - SIDE_FRONT_EXCLUDED_M)
+
+
+def watched_while_moving(cars: Cars, ego: tuple[float, float, float, float, float, float]) -> set[str]:
+    """The cars the courtesy looks at while the ego moves, beside those it holds: those
+    :func:`following` it and those about to drive into its side or rear (:func:`driving_into_side`)."""
+    if not len(cars.ids):
+        return set()
+    return following_ids(cars, ego) | _who(cars, ego, driving_into_side, NEAR_CAR_M)
 
 
 def _who(movers: Movers | Cars, ego: tuple[float, float, float, float, float, float],

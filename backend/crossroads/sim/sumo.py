@@ -886,8 +886,10 @@ class SumoSession:
 
     @_sumo_errors
     def lane_successors(self, lane_id: str) -> tuple[str, ...]:
-        """The lanes the links of ``lane_id`` lead to (internal lanes included)."""
-        return tuple(str(link[0]) for link in libsumo.lane.getLinks(lane_id))
+        """The lanes a vehicle on ``lane_id`` drives onto next, one per link: the link's internal
+        lane where it has one (a left turn's part beyond its waiting point), else the lane it
+        leads to."""
+        return tuple(str(link[4] or link[0]) for link in libsumo.lane.getLinks(lane_id))
 
     @_sumo_errors
     def lane_next(self, lane_id: str) -> str | None:

@@ -35,7 +35,8 @@ from crossroads.sim.abnormal import AbnormalTraffic, injected_departures, with_d
 from crossroads.sim.blocking import BlockedBy, held_whole_episode, nearest_barrier
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.clearing import JunctionClearing, Pose, caught, remaining_way, session_movement_links
-from crossroads.sim.courtesy import EGO_STANDING_MPS, Cars, Courtesy, Movers, following
+from crossroads.sim.courtesy import EGO_STANDING_MPS, Cars, Courtesy, Movers
+from crossroads.sim.courtesy import NEAR_CAR_M as COURTESY_NEAR_CAR_M
 from crossroads.sim.courtesy import NEAR_M as COURTESY_NEAR_M
 from crossroads.sim.courtesy import SWEEP_NEAR_M, WayAhead
 from crossroads.sim.ego import ego_step
@@ -433,7 +434,7 @@ class World:
                                 0.5 * np.maximum(snap.length[rows], snap.width[rows]),
                                 vehicles=(snap.x[cars], snap.y[cars], snap.heading[cars], snap.speed[cars],
                                           snap.length[cars], snap.width[cars]),
-                                way=self._ego_way_ahead())
+                                way=self._ego_way_ahead(), clearing=self._sumo_driver_clearing)
 
     def _ego_way_ahead(self) -> tuple[FloatArray, FloatArray, float] | None:
         """The way of SUMO's driver of the ego inside the junction along its lanes, its arc lengths
@@ -446,8 +447,8 @@ class World:
 
     def _let_pedestrians_stop(self, snap: Snapshot, around: _Around) -> bool:
         """Pedestrians, cyclists and drivers (not the abnormal ones) about to move into the
-        standing ego stop, pedestrians about to walk into a moving ego's side and drivers following
-        it too (sim/courtesy.py);
+        standing ego stop; pedestrians and drivers about to move into a moving ego's side and
+        drivers following it too (sim/courtesy.py);
         a cyclist taken out after a standoff is an episode event. Whether anyone was taken out."""
         if not self._courtesy.enabled:
             return False
@@ -458,20 +459,17 @@ class World:
             return Movers(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows])
 
         is_pedestrian = snap.kind_code == _PEDESTRIAN
-        cars_near = (snap.kind_code == _VEHICLE) & (around.distance < SWEEP_NEAR_M)
-        followed = bool(cars_near.any()) and bool(
-            following(ego, snap.x[cars_near], snap.y[cars_near], snap.heading[cars_near]).any())
-        if not followed and not self._courtesy.may_act(ego[3]):  # moving, no one held or following: its sides
-            near = is_pedestrian & (around.distance < COURTESY_NEAR_M)
-            if near.any():  # (most steps: no one)
-                self._courtesy.watch_sides(self.session, movers(near), ego)
-            return False
-        drivers = (snap.kind_code == _VEHICLE) & (snap.ids != EGO_ID)
+        drivers = (snap.kind_code == _VEHICLE) & (around.distance < COURTESY_NEAR_CAR_M)
         if self._abnormal_ids:
             drivers &= ~np.isin(snap.ids, list(self._abnormal_ids))
         rows = drivers.nonzero()[0]
         cars = Cars(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows],
                     snap.length[rows], snap.width[rows])
+        if not self._courtesy.may_act(ego[3], cars, ego):  # moving, no one held, no car watched: its sides
+            near = is_pedestrian & (around.distance < COURTESY_NEAR_M)
+            if near.any():  # (most steps: no one)
+                self._courtesy.watch_sides(self.session, movers(near), ego)
+            return False
         removals = self._courtesy.update(self.session, movers(is_pedestrian), movers(snap.kind_code == _CYCLIST),
                                          ego, cars, self._ways_through_junction(snap, rows))
         self.events.extend(r.to_event(self.time_s) for r in removals)
