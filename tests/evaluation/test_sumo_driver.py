@@ -88,13 +88,17 @@ print(json.dumps([result.outcome, result.detail]))
 @pytest.mark.parametrize(("scenario", "seed", "hit"), [
     ("e_irregular_oblique-left", "808738376", "hit pedestrian"),
     ("a_single_lane-straight", "179128172", "hit vehicle"),
+    # turning right into a left-turner standing over its bend, which the straight corridor misses
+    ("d_irregular_skewed-right", "1109794873", "hit vehicle"),
 ])
 def test_sumo_driver_brakes_for_whoever_is_in_its_way_ahead(scenario: str, seed: str, hit: str) -> None:
     """Runs of benchmarks/world_flow.py's base seed where SUMO's driver, without the look-ahead
     (sim/look_ahead.py), collides, and with it waits and passes: on the nominal left turn of
     e_irregular_oblique, inside the junction past its crossing's link, it drives into a pedestrian
     walking in front of it; going straight on a_single_lane it stops at its line against the rear
-    corner of a left-turner waiting just inside the junction. Each episode runs first in a fresh
+    corner of a left-turner waiting just inside the junction; turning right on d_irregular_skewed
+    it drives into the side of the opposite left-turner standing over its bend, where the two merge
+    into one exit lane (the look-ahead places the ego's body along its way). Each episode runs first in a fresh
     process, as ``crossroads run`` does: SUMO's result can depend on what the process ran before (a
     batch forks each episode for that reason). (A change of the world's traffic may move the
     others: then find another such run with the benchmark, ``--policy sumo --scenario ...``.)"""

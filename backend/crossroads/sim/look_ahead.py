@@ -135,12 +135,11 @@ def points_in_the_way(ego_x: float, ego_y: float, ego_heading: float, ego_speed:
 
 def vehicles_in_the_way(ego_x: float, ego_y: float, ego_heading: float, ego_speed: float, length: float,
                         width: float, xs: FloatArray, ys: FloatArray, headings: FloatArray, speeds: FloatArray,
-                        lengths: FloatArray, widths: FloatArray,
-                        times_s: tuple[float, ...] = VEHICLE_TIMES_S) -> np.ndarray:
+                        lengths: FloatArray, widths: FloatArray) -> np.ndarray:
     """(n,) bool: which vehicles (centres, headings [rad], speeds, lengths, widths) reach into the
-    vehicles' corridor now or at ``times_s`` ahead at their speed and heading."""
+    vehicles' corridor now or at :data:`VEHICLE_TIMES_S` ahead at their speed and heading."""
     out = np.zeros(len(xs), dtype=bool)
-    for t in times_s:
+    for t in VEHICLE_TIMES_S:
         shift = speeds * t
         px, py = footprint_points(xs + shift * np.cos(headings), ys + shift * np.sin(headings), headings,
                                   lengths, widths)
@@ -192,13 +191,12 @@ class LookAhead:
     def update(self, session: SumoSession, ego: tuple[float, float, float, float, float, float],
                xs: FloatArray, ys: FloatArray, headings: FloatArray, speeds: FloatArray,
                radii: FloatArray, vehicles: tuple[FloatArray, ...] | None = None,
-               way: tuple[FloatArray, FloatArray, float] | None = None, clearing: bool = False) -> bool:
+               way: tuple[FloatArray, FloatArray, float] | None = None) -> bool:
         """``ego``: its (x, y, heading, speed, length, width); the pedestrians' and cyclists'
         centres, headings [rad], speeds and radii (:func:`in_the_way`); ``vehicles``: their
         centres, headings, speeds, lengths and widths (:func:`vehicles_in_the_way`); ``way``: inside the
         junction, the ego's way along its lanes, its arc lengths and where the ego's front is on it
-        (:func:`body_sweeps_into`), else None; ``clearing``: the ego clears the junction after its
-        green, and only vehicles in its way now count. Commands the stop or hands the ego back to
+        (:func:`body_sweeps_into`), else None. Commands the stop or hands the ego back to
         SUMO's driver; whether it is braking now."""
         if not self.enabled:
             return False
@@ -212,7 +210,7 @@ class LookAhead:
             near = (np.hypot(vx - x, vy - y) < NEAR_M).nonzero()[0]
             blocked = bool(len(near)) and bool(vehicles_in_the_way(
                 x, y, heading, speed, length, width, vx[near], vy[near], vheading[near], vspeed[near],
-                vlength[near], vwidth[near], times_s=(0.0,) if clearing else VEHICLE_TIMES_S).any())
+                vlength[near], vwidth[near]).any())
             if not blocked and way is not None and len(near):
                 points, cum, front_m = way
                 blocked = bool(body_sweeps_into(

@@ -434,7 +434,7 @@ class World:
                                 0.5 * np.maximum(snap.length[rows], snap.width[rows]),
                                 vehicles=(snap.x[cars], snap.y[cars], snap.heading[cars], snap.speed[cars],
                                           snap.length[cars], snap.width[cars]),
-                                way=self._ego_way_ahead(), clearing=self._sumo_driver_clearing)
+                                way=self._ego_way_ahead())
 
     def _ego_way_ahead(self) -> tuple[FloatArray, FloatArray, float] | None:
         """The way of SUMO's driver of the ego inside the junction along its lanes, its arc lengths
