@@ -128,8 +128,9 @@ def along_extended(way: FloatArray, cum: FloatArray, s: FloatArray) -> tuple[Flo
     x, y = np.interp(s, cum, way[:, 0]), np.interp(s, cum, way[:, 1])
     before = s < cum[0]
     if before.any():
-        first = max(int(np.searchsorted(cum, cum[0], side="right")), 1)  # skip repeated points
-        d = (way[min(first, len(way) - 1)] - way[0]) / max(float(cum[min(first, len(cum) - 1)] - cum[0]), 1e-9)
+        j = min(int(np.searchsorted(cum, cum[0], side="right")), len(cum) - 1)  # past repeated points
+        span = float(cum[j] - cum[0])
+        d = (way[j] - way[0]) / span if span > 0.0 else np.zeros(2)
         x = np.where(before, way[0, 0] + (s - cum[0]) * d[0], x)
         y = np.where(before, way[0, 1] + (s - cum[0]) * d[1], y)
     return x, y

@@ -22,11 +22,11 @@ from crossroads.sim.courtesy import (
     driving_into,
     following,
     riding_into,
-    WayAhead,
     sweeping_into,
     walking_into,
 )
 from crossroads.geometry import arc_lengths, placed_along
+from crossroads.sim.look_ahead import WayAhead
 from crossroads.sim.sumo import SumoSession
 from crossroads.sim.traffic import VTYPES_XML
 

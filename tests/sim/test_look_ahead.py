@@ -17,6 +17,7 @@ from crossroads.sim.look_ahead import (
     VEHICLE_DECEL_MPS2,
     LATERAL_MARGIN_M,
     LookAhead,
+    WayAhead,
     body_sweeps_into,
     corridor_length,
     footprint_points,
@@ -155,7 +156,7 @@ def _left_turn() -> np.ndarray:
 
 def _sweeps(way: np.ndarray, front_m: float, car: tuple[float, float, float], reach_m: float = 3.0) -> bool:
     x, y, heading = car
-    return bool(body_sweeps_into(way, arc_lengths(way), front_m, reach_m, LENGTH, WIDTH, np.array([x]),
+    return bool(body_sweeps_into(WayAhead(way, arc_lengths(way), front_m), reach_m, LENGTH, WIDTH, np.array([x]),
                                  np.array([y]), np.array([heading]), np.array([CAR[0]]), np.array([CAR[1]]))[0])
 
 
@@ -189,4 +190,4 @@ def test_the_swept_body_stops_the_ego_inside_the_junction() -> None:
            np.array([CAR[1]]))
     ego = (0.0, -2.4, math.pi / 2, 5.0, LENGTH, WIDTH)  # 5 m/s: its corridor 3.8 m
     assert not rule.update(session, ego, *nobody, vehicles=car)  # type: ignore[arg-type]  # straight: past it
-    assert rule.update(session, ego, *nobody, vehicles=car, way=(way, arc_lengths(way), 10.0))  # type: ignore[arg-type]
+    assert rule.update(session, ego, *nobody, vehicles=car, way=WayAhead(way, arc_lengths(way), 10.0))  # type: ignore[arg-type]

@@ -31,8 +31,9 @@ for any car ahead or crossing in front of it. Seen with SUMO's driver (base seed
 ``b_two_lane``'s left turn a right-turner merging behind it into the same exit drove up to 0.04 m
 from the ego's side as the ego braked, and the ego pulling away then swung into it (seed
 285310816); on ``e_irregular_oblique``'s left turn the cross street's first car, braking for the
-ego clearing the junction in front of it, drove off again into its side (seed 1988177980). Both were seen with SUMO's driver
-on ``e_irregular_oblique``'s left turn (base seed 20261206), the car ahead of the standing ego taken
+ego clearing the junction in front of it, drove off again into its side (seed 1988177980). The
+pedestrians' exception was seen with SUMO's driver on ``e_irregular_oblique``'s left turn (base
+seed 20261206) in two ways: the car ahead of the standing ego taken
 out by the gridlock breaker and the ego starting: a pedestrian held 0.9 m from its front corner,
 released the moment the ego moved, walked into it 0.5 s later (seed 1311414304), and one walking
 the crossing towards the ego's side walked into its rear quarter as the ego pulled away at 4 m/s
@@ -62,7 +63,7 @@ import numpy as np
 
 from crossroads.geometry import FloatArray, arc_lengths, placed_along
 from crossroads.sim.gridlock import Removal
-from crossroads.sim.look_ahead import footprint_points
+from crossroads.sim.look_ahead import WayAhead, comes_nearer, footprint_points
 from crossroads.sim.sumo import SumoSession
 
 EGO_STANDING_MPS = 0.5  # [m/s] below this the ego counts as standing
@@ -74,7 +75,6 @@ CYCLIST_DECEL_MPS2 = 3.0  # [m/s²] the world's bicycles brake at this (sim/traf
 CYCLIST_STANDOFF_S = 8.0  # [s] a cyclist held this long by a still standing ego goes round it
 CAR_DECEL_MPS2 = 4.5  # [m/s²] the world's cars brake at this (sim/traffic.py vType)
 CAR_SPARE_M = 0.2  # [m] kept between a held car's side and the ego, beyond half its width
-CLOSING_M = 0.01  # [m] how much nearer than now a mover's way must bring it for it to be held
 SWEEP_NEAR_M = 12.0  # [m] cars inside the junction farther from the ego are not followed along their lanes
 NEAR_CAR_M = 40.0  # [m] no car farther from the ego's centre is checked (14 m/s: 36 m reach)
 _SAMPLES = np.linspace(0.0, 1.0, 8)  # points along the way ahead checked against the footprint
@@ -110,7 +110,7 @@ def moving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: floa
                 margin_m: float | FloatArray, front_m: float | None = None) -> np.ndarray:
     """Which of the movers at ``x``, ``y`` heading ``heading`` would, within ``reach`` [m] (at least
     :data:`LOOKAHEAD_MIN_M`), come into the ego's footprint widened by ``margin_m`` (one for all,
-    or one each) deeper than they are now (:func:`_closing_in`). With ``front_m``, only the part of
+    or one each) deeper than they are now (:func:`~crossroads.sim.look_ahead.comes_nearer`). With ``front_m``, only the part of
     that footprint at most ``front_m`` ahead of the ego's centre counts (:func:`walking_into_side`)."""
     reach = np.maximum(np.asarray(reach, dtype=float), LOOKAHEAD_MIN_M)
     cos_e, sin_e = math.cos(ego_heading), math.sin(ego_heading)
@@ -124,18 +124,9 @@ def moving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: floa
     across = -dx * sin_e + dy * cos_e
     ahead = half_l if front_m is None else np.minimum(half_l, front_m)
     inside = (along >= -half_l) & (along <= ahead) & (np.abs(across) <= half_w)
-    return _closing_in(inside, np.maximum(np.abs(along) - half_l, np.abs(across) - half_w))
-
-
-def _closing_in(inside: np.ndarray, depth: FloatArray) -> np.ndarray:
-    """(n,) bool from (n, samples) ``inside`` (a sample within the widened footprint) and ``depth``
-    (its distance outside that footprint's box, negative within), sample 0 being now: who would be
-    inside later, and nearer than :data:`CLOSING_M` closer than now. One standing within the margin
-    already still may not move further in: a driver stood 0.07 m from the ego for a minute and then
-    drove off into its corner (``a_single_lane`` left, seed 1101115134, base seed 20261206); one
-    walking away or past at the same distance may go."""
-    later = inside[:, 1:] & (depth[:, 1:] < depth[:, :1] - CLOSING_M)
-    return later.any(axis=1)
+    # nearer than now (a driver stood 0.07 m from the ego for a minute and then drove off into its
+    # corner: a_single_lane left, seed 1101115134, base seed 20261206)
+    return comes_nearer(inside, np.maximum(np.abs(along) - half_l, np.abs(across) - half_w))
 
 
 def walking_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
@@ -168,7 +159,7 @@ def sweeping_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: fl
     """Whether a car whose front bumper follows ``way`` ((n, 2) [m]: its lanes ahead; its front
     ``start_m`` along it, ``cum`` the way's arc lengths when known) would, within ``reach`` [m] (at
     least :data:`LOOKAHEAD_MIN_M`) along it, bring its body within :data:`CAR_SPARE_M` of the ego's
-    footprint, closer than it is now (:func:`_closing_in`). Unlike :func:`driving_into` it follows the lane's bend: a
+    footprint, closer than it is now (:func:`~crossroads.sim.look_ahead.comes_nearer`). Unlike :func:`driving_into` it follows the lane's bend: a
     car turning through the junction sweeps into a car standing where its straight way ahead passes
     beside it."""
     cum = arc_lengths(way) if cum is None else cum
@@ -178,10 +169,10 @@ def sweeping_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: fl
     c, si = math.cos(ego_heading), math.sin(ego_heading)
     dx, dy = px - ego_x, py - ego_y
     along, across = dx * c + dy * si, -dx * si + dy * c
-    # per position, its nearest footprint point's distance outside the ego's widened box
+    # per position, its nearest footprint point's distance outside the ego's box widened by the spare
     depth = np.maximum(np.abs(along) - (0.5 * ego_length + CAR_SPARE_M),
                        np.abs(across) - (0.5 * ego_width + CAR_SPARE_M)).min(axis=1)
-    return bool(_closing_in((depth <= 0.0)[None, :], depth[None, :])[0])
+    return bool(comes_nearer(depth <= 0.0, depth))
 
 
 def driving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
@@ -253,12 +244,13 @@ class Courtesy:
 
     def update(self, session: SumoSession, pedestrians: Movers, cyclists: Movers,
                ego: tuple[float, float, float, float, float, float], cars: Cars = NO_CARS,
-               car_ways: Mapping[str, WayAhead] | None = None) -> list[Removal]:
+               car_ways: Mapping[str, WayAhead] | None = None, watched: set[str] | None = None) -> list[Removal]:
         """``ego``: its (x, y, heading, speed, length, width). Holds and releases through
         ``session`` (pedestrians by their walking speed, cyclists and cars as the vehicles they
         are, braking as SUMO lets them); returns the cyclists taken out (held
         :data:`CYCLIST_STANDOFF_S`). ``car_ways``: for the cars of ``cars`` inside the junction
-        near the ego, their way ahead along their lanes (:func:`sweeping_into`)."""
+        near the ego, their way ahead along their lanes (:func:`sweeping_into`). ``watched``: for a
+        moving ego, :func:`watched_while_moving` of ``cars`` when the caller has it already."""
         if not self.enabled:
             return []
         self._hold_pedestrians(session, pedestrians, ego)
@@ -272,7 +264,9 @@ class Courtesy:
             session.set_speed(vid, -1.0)
 
         # a moving ego: those held before, those following it and those about to drive into its side
-        looked_at = None if standing else self.held_cars | watched_while_moving(cars, ego)
+        if not standing and watched is None:
+            watched = watched_while_moving(cars, ego)
+        looked_at = None if watched is None or standing else self.held_cars | watched
         now = _who(cars if looked_at is None else _only(cars, looked_at), ego, driving_into, NEAR_CAR_M)
         if car_ways:
             now |= _sweeping(cars, car_ways, ego, looked_at)
@@ -300,13 +294,6 @@ def following(ego: tuple[float, float, float, float, float, float], x: FloatArra
     return behind & (np.cos(np.asarray(heading) - ego_heading) > 0.0) & (np.hypot(dx, dy) < SWEEP_NEAR_M)
 
 
-def following_ids(cars: Cars, ego: tuple[float, float, float, float, float, float]) -> set[str]:
-    """The ids of the cars :func:`following` the ego."""
-    if not len(cars.ids):
-        return set()
-    return {str(i) for i in cars.ids[following(ego, cars.x, cars.y, cars.heading)]}
-
-
 def driving_into_side(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
                       x: FloatArray, y: FloatArray, heading: FloatArray, speed: FloatArray,
                       length: FloatArray, width: FloatArray) -> np.ndarray:
@@ -325,7 +312,8 @@ def watched_while_moving(cars: Cars, ego: tuple[float, float, float, float, floa
     :func:`following` it and those about to drive into its side or rear (:func:`driving_into_side`)."""
     if not len(cars.ids):
         return set()
-    return following_ids(cars, ego) | _who(cars, ego, driving_into_side, NEAR_CAR_M)
+    behind = {str(i) for i in cars.ids[following(ego, cars.x, cars.y, cars.heading)]}
+    return behind | _who(cars, ego, driving_into_side, NEAR_CAR_M)
 
 
 def _who(movers: Movers | Cars, ego: tuple[float, float, float, float, float, float],
@@ -340,15 +328,6 @@ def _who(movers: Movers | Cars, ego: tuple[float, float, float, float, float, fl
         return set()
     into = test(ego_x, ego_y, ego_heading, length, width, *(np.asarray(c)[near] for c in movers[1:]))
     return {str(movers.ids[r]) for r in near[into]}
-
-
-class WayAhead(NamedTuple):
-    """A car's way along its lanes (:func:`sweeping_into`): the polyline [m], its arc lengths [m],
-    and how far along it the car's front is [m]."""
-
-    points: FloatArray
-    cum: FloatArray
-    start_m: float
 
 
 def _sweeping(cars: Cars, ways: Mapping[str, WayAhead],

@@ -56,6 +56,7 @@ Pure geometry below; :class:`LookAhead` applies it to a session.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -73,7 +74,7 @@ VEHICLE_BUFFER_M = 1.0  # [m] a vehicle's corridor beyond that braking distance
 VEHICLE_OVERLAP_M = 0.5  # [m] a vehicle's point this far behind the bumper still counts (touching)
 VEHICLE_TIMES_S = (0.0, 0.5, 1.0)  # [s] where vehicles are looked at: now and ahead at their speed
 _SWEEP_SAMPLES = 8  # the ego's placements along its way, now included (body_sweeps_into)
-_CLOSING_M = 0.01  # [m] how much nearer than now counts as coming nearer (body_sweeps_into)
+CLOSING_M = 0.01  # [m] how much nearer than now counts as coming nearer (comes_nearer)
 
 
 def corridor_length(speed_mps: float) -> float:
@@ -147,37 +148,53 @@ def vehicles_in_the_way(ego_x: float, ego_y: float, ego_heading: float, ego_spee
     return out
 
 
-def body_sweeps_into(way: FloatArray, cum: FloatArray, front_m: float, reach_m: float, length: float,
-                     width: float, xs: FloatArray, ys: FloatArray, headings: FloatArray, lengths: FloatArray,
-                     widths: FloatArray) -> np.ndarray:
-    """(n,) bool: which vehicles (centres, headings [rad], lengths, widths) the ego's body, its front
-    moving from ``front_m`` to ``reach_m`` further along ``way`` (arc lengths ``cum``) and placed as
-    SUMO places a car (:func:`~crossroads.geometry.placed_along`), would come within
-    :data:`LATERAL_MARGIN_M` of, nearer than it is at ``front_m`` (module docstring)."""
-    if not len(xs):
-        return np.zeros(0, dtype=bool)
-    s = front_m + np.linspace(0.0, max(reach_m, 0.0), _SWEEP_SAMPLES)
-    cx, cy, ch = placed_along(way, cum, s, length)
-    k = len(s)
-    # the ego's points (k, 9) against every vehicle's box, and every vehicle's points against its boxes
-    epx, epy = footprint_points(cx, cy, ch, np.full(k, length), np.full(k, width))
-    vpx, vpy = footprint_points(xs, ys, headings, lengths, widths)
-    ego_in_them = _outside_box(epx[:, None, :], epy[:, None, :], xs[None, :, None], ys[None, :, None],
-                               headings[None, :, None], lengths[None, :, None], widths[None, :, None])
-    them_in_ego = _outside_box(vpx[None, :, :], vpy[None, :, :], cx[:, None, None], cy[:, None, None],
-                               ch[:, None, None], length, width)
-    gap = np.minimum(ego_in_them.min(axis=2), them_in_ego.min(axis=2))  # (k, n)
-    return ((gap[1:] < LATERAL_MARGIN_M) & (gap[1:] < gap[:1] - _CLOSING_M)).any(axis=0)
+class WayAhead(NamedTuple):
+    """A car's way along its lanes: the polyline [m], its arc lengths [m], and how far along it the
+    car's front is [m]."""
+
+    points: FloatArray
+    cum: FloatArray
+    start_m: float
 
 
-def _outside_box(px: FloatArray, py: FloatArray, cx: FloatArray, cy: FloatArray, heading: FloatArray,
-                 length: FloatArray | float, width: FloatArray | float) -> FloatArray:
+def outside_box(px: FloatArray, py: FloatArray, cx: FloatArray | float, cy: FloatArray | float,
+                heading: FloatArray | float, length: FloatArray | float, width: FloatArray | float) -> FloatArray:
     """How far [m] each point lies outside the box (centre, heading, length, width), by the larger
     of its distances beyond the box's ends and sides (negative inside); broadcasts."""
     c, s = np.cos(heading), np.sin(heading)
     dx, dy = px - cx, py - cy
     return np.maximum(np.abs(dx * c + dy * s) - 0.5 * np.asarray(length),
                       np.abs(dy * c - dx * s) - 0.5 * np.asarray(width))
+
+
+def comes_nearer(within: np.ndarray, gap: FloatArray) -> np.ndarray:
+    """Over the last axis of ``within`` (a sample near enough to count) and ``gap`` (its distance
+    outside the other's box, :func:`outside_box`), sample 0 being now: whether a later sample is
+    within and more than :data:`CLOSING_M` nearer than now. One already within may still not come
+    further in; one moving away or past at the same distance may go."""
+    return (within[..., 1:] & (gap[..., 1:] < gap[..., :1] - CLOSING_M)).any(axis=-1)
+
+
+def body_sweeps_into(way: WayAhead, reach_m: float, length: float, width: float, xs: FloatArray, ys: FloatArray,
+                     headings: FloatArray, lengths: FloatArray, widths: FloatArray) -> np.ndarray:
+    """(n,) bool: which vehicles (centres, headings [rad], lengths, widths) the ego's body, its front
+    moving from ``way.start_m`` to ``reach_m`` further along its way and placed as SUMO places a car
+    (:func:`~crossroads.geometry.placed_along`), would come within :data:`LATERAL_MARGIN_M` of,
+    nearer than it is now (:func:`comes_nearer`; module docstring)."""
+    if not len(xs):
+        return np.zeros(0, dtype=bool)
+    s = way.start_m + np.linspace(0.0, max(reach_m, 0.0), _SWEEP_SAMPLES)
+    cx, cy, ch = placed_along(way.points, way.cum, s, length)
+    k = len(s)
+    # the ego's points (k, 9) against every vehicle's box, and every vehicle's points against its boxes
+    epx, epy = footprint_points(cx, cy, ch, np.full(k, length), np.full(k, width))
+    vpx, vpy = footprint_points(xs, ys, headings, lengths, widths)
+    ego_in_them = outside_box(epx[:, None, :], epy[:, None, :], xs[None, :, None], ys[None, :, None],
+                              headings[None, :, None], lengths[None, :, None], widths[None, :, None])
+    them_in_ego = outside_box(vpx[None, :, :], vpy[None, :, :], cx[:, None, None], cy[:, None, None],
+                              ch[:, None, None], length, width)
+    gap = np.minimum(ego_in_them.min(axis=2), them_in_ego.min(axis=2)).T  # (n, k)
+    return comes_nearer(gap < LATERAL_MARGIN_M, gap)
 
 
 class LookAhead:
@@ -191,12 +208,11 @@ class LookAhead:
     def update(self, session: SumoSession, ego: tuple[float, float, float, float, float, float],
                xs: FloatArray, ys: FloatArray, headings: FloatArray, speeds: FloatArray,
                radii: FloatArray, vehicles: tuple[FloatArray, ...] | None = None,
-               way: tuple[FloatArray, FloatArray, float] | None = None) -> bool:
+               way: WayAhead | None = None) -> bool:
         """``ego``: its (x, y, heading, speed, length, width); the pedestrians' and cyclists'
         centres, headings [rad], speeds and radii (:func:`in_the_way`); ``vehicles``: their
         centres, headings, speeds, lengths and widths (:func:`vehicles_in_the_way`); ``way``: inside the
-        junction, the ego's way along its lanes, its arc lengths and where the ego's front is on it
-        (:func:`body_sweeps_into`), else None. Commands the stop or hands the ego back to
+        junction, the ego's way along its lanes (:func:`body_sweeps_into`), else None. Commands the stop or hands the ego back to
         SUMO's driver; whether it is braking now."""
         if not self.enabled:
             return False
@@ -212,10 +228,9 @@ class LookAhead:
                 x, y, heading, speed, length, width, vx[near], vy[near], vheading[near], vspeed[near],
                 vlength[near], vwidth[near]).any())
             if not blocked and way is not None and len(near):
-                points, cum, front_m = way
                 blocked = bool(body_sweeps_into(
-                    points, cum, front_m, vehicle_corridor_length(speed), length, width, vx[near], vy[near],
-                    vheading[near], vlength[near], vwidth[near]).any())
+                    way, vehicle_corridor_length(speed), length, width, vx[near], vy[near], vheading[near],
+                    vlength[near], vwidth[near]).any())
         if blocked != self.braking:
             session.set_speed(self.ego_id, 0.0 if blocked else -1.0)
             self.braking = blocked

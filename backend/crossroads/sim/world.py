@@ -35,15 +35,15 @@ from crossroads.sim.abnormal import AbnormalTraffic, injected_departures, with_d
 from crossroads.sim.blocking import BlockedBy, held_whole_episode, nearest_barrier
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.clearing import JunctionClearing, Pose, caught, remaining_way, session_movement_links
-from crossroads.sim.courtesy import EGO_STANDING_MPS, Cars, Courtesy, Movers
+from crossroads.sim.courtesy import EGO_STANDING_MPS, Cars, Courtesy, Movers, watched_while_moving
 from crossroads.sim.courtesy import NEAR_CAR_M as COURTESY_NEAR_CAR_M
 from crossroads.sim.courtesy import NEAR_M as COURTESY_NEAR_M
-from crossroads.sim.courtesy import SWEEP_NEAR_M, WayAhead
+from crossroads.sim.courtesy import SWEEP_NEAR_M
 from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
 from crossroads.sim.gridlock import GridlockBreaker
 from crossroads.sim.letting_out import LettingOut, incoming_lanes
-from crossroads.sim.look_ahead import LookAhead
+from crossroads.sim.look_ahead import LookAhead, WayAhead
 from crossroads.sim.observation import GroundTruth, LaneShapes, LightView, Observation, Perceived
 from crossroads.sim.outcome import Outcome
 from crossroads.sim.region import Region
@@ -436,14 +436,14 @@ class World:
                                           snap.length[cars], snap.width[cars]),
                                 way=self._ego_way_ahead())
 
-    def _ego_way_ahead(self) -> tuple[FloatArray, FloatArray, float] | None:
-        """The way of SUMO's driver of the ego inside the junction along its lanes, its arc lengths
-        and where its front is on it (sim/look_ahead.py); None outside the junction."""
+    def _ego_way_ahead(self) -> WayAhead | None:
+        """The way of SUMO's driver of the ego inside the junction along its lanes
+        (sim/look_ahead.py); None outside the junction."""
         lane = self.session.vehicle_lane(EGO_ID)
         if not lane.startswith(":"):
             return None
         points, cum = self._way_from(lane)
-        return points, cum, self.session.vehicle_lane_position(EGO_ID)
+        return WayAhead(points, cum, self.session.vehicle_lane_position(EGO_ID))
 
     def _let_pedestrians_stop(self, snap: Snapshot, around: _Around) -> bool:
         """Pedestrians, cyclists and drivers (not the abnormal ones) about to move into the
@@ -465,21 +465,24 @@ class World:
         rows = drivers.nonzero()[0]
         cars = Cars(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows],
                     snap.length[rows], snap.width[rows])
-        if not self._courtesy.may_act(ego[3], cars, ego):  # moving, no one held, no car watched: its sides
+        # a moving ego: the cars the courtesy watches, worked out once for both calls below
+        watched = watched_while_moving(cars, ego) if ego[3] >= EGO_STANDING_MPS else None
+        if not watched and not self._courtesy.may_act(ego[3]):  # moving, no one held or watched: its sides
             near = is_pedestrian & (around.distance < COURTESY_NEAR_M)
             if near.any():  # (most steps: no one)
                 self._courtesy.watch_sides(self.session, movers(near), ego)
             return False
         removals = self._courtesy.update(self.session, movers(is_pedestrian), movers(snap.kind_code == _CYCLIST),
-                                         ego, cars, self._ways_through_junction(snap, rows))
+                                         ego, cars, self._ways_through_junction(snap, rows, around),
+                                         watched=watched)
         self.events.extend(r.to_event(self.time_s) for r in removals)
         return bool(removals)
 
-    def _ways_through_junction(self, snap: Snapshot, rows: np.ndarray) -> dict[str, WayAhead]:
+    def _ways_through_junction(self, snap: Snapshot, rows: np.ndarray, around: _Around) -> dict[str, WayAhead]:
         """The way along their lanes (sim/clearing.py's remaining way, from their lane's start) of
         the cars among ``rows`` of ``snap`` inside the junction within SWEEP_NEAR_M of the ego, for
         the courtesy to follow their bend (sim/courtesy.py's ``sweeping_into``)."""
-        near = rows[np.hypot(snap.x[rows] - self.ego[0], snap.y[rows] - self.ego[1]) < SWEEP_NEAR_M]
+        near = rows[around.distance[rows] < SWEEP_NEAR_M]
         ways = {}
         for r in near.tolist():
             vid = str(snap.ids[r])
