@@ -112,6 +112,61 @@ def test_sumo_driver_brakes_for_whoever_is_in_its_way_ahead(scenario: str, seed:
     assert outcomes["on"][0] == "passed", outcomes
 
 
+# one episode of SUMO's driver in a fresh process, with module constants of the world patched:
+# argv: scenario, seed, then "module:NAME=python expression" patches; prints outcome, detail, events
+_ONE_EPISODE_PATCHED = """
+import importlib, json, math, sys
+import numpy as np
+from pathlib import Path
+for patch in sys.argv[3:]:
+    target, expression = patch.split("=", 1)
+    module, name = target.split(":")
+    setattr(importlib.import_module(module), name, eval(expression))
+from crossroads.evaluation.episode import run_episode
+from crossroads.evaluation.sumo_driver import SumoDriverPolicy
+from crossroads.scenario.spec import load_scenario, to_world_config
+from crossroads.sim.world import World
+path, seed = Path(sys.argv[1]), int(sys.argv[2])
+with World(to_world_config(load_scenario(path), path.parent)) as world:
+    result = run_episode(world, SumoDriverPolicy(), seed=seed)
+print(json.dumps([result.outcome, result.detail, [e["event"] for e in result.events]]))
+"""
+
+
+def _patched_episode(scenario: str, seed: int, *patches: str) -> list:
+    done = subprocess.run([sys.executable, "-c", _ONE_EPISODE_PATCHED,
+                           str(REPO / f"scenarios/nominal/{scenario}.yaml"), str(seed), *patches],
+                          capture_output=True, text=True, timeout=300, check=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.slow
+def test_the_cross_street_waits_for_a_caught_ego_that_sets_off_after_the_let_outs_bound() -> None:
+    """e_irregular_oblique's nominal left turn, run 1848100215 of benchmarks/world_flow.py's base
+    seed: SUMO's driver stands caught at its waiting point 21 s behind the oncoming traffic clearing
+    the junction; the let-out's bound let the cross street go just as it set off, and the cross
+    street's first car drove into its side, until a caught vehicle that moves was let out however
+    long it had been caught (sim/letting_out.py)."""
+    before = _patched_episode("e_irregular_oblique-left", 1848100215, "crossroads.sim.letting_out:MOVING_MPS=math.inf")
+    assert before[:2] == ["collision", "hit vehicle veh11"], before
+    assert _patched_episode("e_irregular_oblique-left", 1848100215)[0] == "passed"
+
+
+@pytest.mark.slow
+def test_a_pedestrian_held_in_front_of_sumos_driver_goes_round_it() -> None:
+    """c_three_lane's nominal left turn, run 1416578486 of benchmarks/world_flow.py's base seed:
+    a pedestrian crossing the ego's exit is held 0.5 m in front of its bumper, its way grazing the
+    front corner; SUMO's driver, going first past the pedestrians the courtesy holds, crept into it.
+    Now it waits for one right in front of it, and the pedestrian goes round the car after the
+    standoff (sim/courtesy.py)."""
+    before = _patched_episode("c_three_lane-left", 1416578486,
+                              "crossroads.sim.world:in_front=lambda *a: np.zeros(len(a[5]), dtype=bool)",
+                              "crossroads.sim.courtesy:PEDESTRIAN_STANDOFF_S=math.inf")
+    assert before[:2] == ["collision", "hit pedestrian ped34"], before
+    outcome, _, events = _patched_episode("c_three_lane-left", 1416578486)
+    assert outcome == "passed" and "gridlock_removed" in events
+
+
 @pytest.mark.slow
 def test_sumo_driver_clears_the_junction_once_its_light_is_no_longer_green() -> None:
     """The nominal left turn of c_three_lane, run 2016976523 of benchmarks/world_flow.py's base

@@ -16,6 +16,7 @@ from crossroads.sim.courtesy import (
     CYCLIST_STANDOFF_S,
     Cars,
     Courtesy,
+    PEDESTRIAN_STANDOFF_S,
     Movers,
     car_reach,
     cyclist_reach,
@@ -152,6 +153,9 @@ class _Recorder:
     def vehicle_lane(self, vid: str) -> str:
         return ":C_20_0"
 
+    def person_lane(self, pid: str) -> str:
+        return ":C_c0_0"
+
     def remove(self, vid: str) -> None:
         self.calls.append(("remove", vid))
 
@@ -224,6 +228,38 @@ def test_a_cyclist_held_too_long_goes_round_the_car() -> None:
     assert removal.participant == "b" and removal.stood_s == pytest.approx(CYCLIST_STANDOFF_S)
     assert session.calls == [("hold", "b"), ("remove", "b")] and not rule.held_cyclists
     assert removal.to_event(3.0)["event"] == "gridlock_removed"
+
+
+# 0.45 m ahead of the bumper, walking across its front and a little towards it (as in c_three_lane's
+# left turn, seed 1416578486 of base seed 20261206)
+_IN_FRONT = Movers(np.array(["f"]), np.array([2.85]), np.array([0.5]), np.array([-np.pi / 2 - 0.2]), np.array([1.3]))
+
+
+def test_a_pedestrian_held_in_front_of_the_standing_ego_goes_round_it_and_one_beside_it_waits() -> None:
+    rule, session = Courtesy(), _Recorder()
+    ego = (0.0, 0.0, 0.0, 0.0, 4.8, 2.0)  # its front bumper at x = 2.4, its sides at y = ±1
+    front = _IN_FRONT
+    beside = _one("s", 2.0, 1.3)  # walking into the middle of its side
+    both = Movers(*(np.concatenate([a, b]) for a, b in zip(front, beside, strict=True)))
+    assert rule.update(session, both, NOBODY, ego) == []  # type: ignore[arg-type]
+    assert rule.held_pedestrians == {"f", "s"} and set(rule.held_in_front) == {"f"}
+    session.time_s = PEDESTRIAN_STANDOFF_S - 0.5
+    assert rule.update(session, both, NOBODY, ego) == []  # type: ignore[arg-type]
+    session.time_s = PEDESTRIAN_STANDOFF_S
+    (removal,) = rule.update(session, both, NOBODY, ego)  # type: ignore[arg-type]
+    assert removal.participant == "f" and removal.lane == ":C_c0_0"
+    assert ("remove", "f") in session.calls and rule.held_pedestrians == {"s"} and not rule.held_in_front
+
+
+def test_the_standoff_in_front_counts_only_while_the_ego_stands() -> None:
+    rule, session = Courtesy(), _Recorder()
+    front = _IN_FRONT
+    rule.update(session, front, NOBODY, (0.0, 0.0, 0.0, 0.0, 4.8, 2.0))  # type: ignore[arg-type]
+    session.time_s = 5.0
+    rule.watch_sides(session, NOBODY, (0.0, 0.0, 0.0, 2.0, 4.8, 2.0))  # type: ignore[arg-type]  # it moved
+    session.time_s = PEDESTRIAN_STANDOFF_S
+    assert rule.update(session, front, NOBODY, (0.0, 0.0, 0.0, 0.0, 4.8, 2.0)) == []  # type: ignore[arg-type]
+    assert rule.held_in_front == {"f": PEDESTRIAN_STANDOFF_S}
 
 
 def test_off_means_off() -> None:

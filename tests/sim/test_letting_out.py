@@ -13,9 +13,11 @@ import pytest
 
 from crossroads.evaluation.sumo_driver import SumoDriverPolicy
 from crossroads.scenario.spec import load_scenario, to_world_config
+from crossroads.sim import letting_out
 from crossroads.sim.letting_out import (
     LET_OUT_FOR_S,
     can_stop_before,
+    distance_to_meeting,
     incoming_lanes,
     way_through,
     ways_meet,
@@ -36,6 +38,16 @@ def test_ways_meet_where_they_cross_or_run_within_reach_and_not_where_they_keep_
     short_of_it = np.array([[10.0, -10.0], [10.0, -3.0]])  # ends 3 m before the way
     assert not ways_meet(east, short_of_it, 2.5) and ways_meet(east, short_of_it, 3.5)
     assert not ways_meet(east, np.empty((0, 2)), 10.0)
+
+
+def test_the_distance_to_meeting_is_measured_along_the_way_to_its_first_point_within_reach() -> None:
+    east = np.array([[0.0, 0.0], [20.0, 0.0]])
+    north = np.array([[10.0, -10.0], [10.0, 10.0]])
+    assert distance_to_meeting(east, north, 2.0) == pytest.approx(8.0, abs=0.5)
+    bend = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 10.0]])  # 4 m east, then north along x = 4
+    assert distance_to_meeting(bend, np.array([[0.0, 6.0], [10.0, 6.0]]), 1.0) == pytest.approx(9.0, abs=0.5)
+    assert distance_to_meeting(east, np.array([[0.0, 4.0], [20.0, 4.0]]), 2.0) is None  # 4 m apart
+    assert distance_to_meeting(east, np.empty((0, 2)), 10.0) is None
 
 
 @pytest.mark.parametrize(("distance", "speed", "expected"), [
@@ -72,7 +84,9 @@ CAUGHT_SEED = 466267842
 @pytest.mark.parametrize("let_out", [True, False])
 def test_sumos_driver_caught_at_its_waiting_point_gets_out_when_the_cross_street_lets_it(let_out: bool) -> None:
     cfg = replace(to_world_config(load_scenario(E_LEFT), E_LEFT.parent), let_out=let_out)
-    waited_s: dict[str, float] = defaultdict(float)  # how long each driver has waited, in a row
+    # how long each driver has waited in a row while all it waits for stood still (a caught one
+    # that moves is let out however long it has been caught)
+    waited_s: dict[str, float] = defaultdict(float)
     longest_s = 0.0
     waited_for_ego = False
     with World(cfg) as world:
@@ -84,7 +98,8 @@ def test_sumos_driver_caught_at_its_waiting_point_gets_out_when_the_cross_street
             waiting = world._letting_out.waiting
             waited_for_ego |= any(EGO_ID in whom for whom in waiting.values())
             for vid in list(waited_s):
-                if vid not in waiting:
+                if vid not in waiting or any(world.session.vehicle_pose(w)[3] > letting_out.MOVING_MPS
+                                             for w in waiting[vid] if w == EGO_ID or w in world.session.vehicle_ids):
                     del waited_s[vid]
             for vid in waiting:
                 waited_s[vid] += 0.1
@@ -95,3 +110,4 @@ def test_sumos_driver_caught_at_its_waiting_point_gets_out_when_the_cross_street
         assert 0.0 < longest_s <= LET_OUT_FOR_S + 2 * CHECK_EVERY_S  # and no one longer than the rule's bound
     else:
         assert outcome.kind == "timeout" and longest_s == 0.0
+

@@ -21,6 +21,7 @@ from crossroads.sim.look_ahead import (
     body_sweeps_into,
     corridor_length,
     footprint_points,
+    in_front,
     in_the_way,
     vehicle_corridor_length,
     vehicles_in_the_way,
@@ -53,6 +54,16 @@ def test_someone_about_to_walk_into_the_corridor_is_in_the_way() -> None:
     assert _in_the_way(3.5, 2.5, heading=-math.pi / 2, speed=1.3)  # there within the second
     assert not _in_the_way(3.5, 2.5, heading=math.pi / 2, speed=1.3)  # walking away
     assert not _in_the_way(3.5, 4.0, heading=-math.pi / 2, speed=1.3)  # too far to be there in a second
+
+
+def test_in_front_is_where_setting_off_would_touch_no_margin_beside_the_egos_width() -> None:
+    def front(x: float, y: float) -> bool:
+        return bool(in_front(0.0, 0.0, 0.0, LENGTH, WIDTH, np.array([x]), np.array([y]), np.array([RADIUS]))[0])
+
+    assert front(2.8, 1.2)  # 0.4 m ahead of the bumper, its body over the ego's side line
+    assert not front(2.8, 1.3)  # clear of it by 0.05 m: the ego drives past
+    assert not front(2.4 + BUFFER_M + 0.3, 0.0)  # beyond the buffer
+    assert not front(0.0, 1.2) and not front(-3.0, 0.0)  # beside or behind
 
 
 def test_behind_or_beside_the_ego_is_not_in_the_way() -> None:

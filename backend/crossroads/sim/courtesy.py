@@ -20,7 +20,12 @@ stop in time. A cyclist held :data:`CYCLIST_STANDOFF_S` while the ego still stan
 is taken out of the simulation, an episode event like the gridlock breaker's — held short of a car
 standing across the bike lane, it stands where that car waits to go, and the two would wait on
 each other (tried: SUMO's driver then passed only once the gridlock breaker took the cyclist out,
-after 138–159 s).
+after 138–159 s). So does a pedestrian held :data:`PEDESTRIAN_STANDOFF_S` right in front of the
+still standing ego (:func:`~crossroads.sim.look_ahead.in_front`: where the ego cannot set off
+without touching it), its way across grazing the car's front corner: the two wait on each other
+too (SUMO's driver, which then let itself go first, crept into one standing 0.26 m from its
+bumper: ``c_three_lane``'s left turn, seed 1416578486 of base seed 20261206, and the same run in
+five of the six paper cases).
 
 A moving ego: whoever it drives into is its collision, so it holds no one new, with two exceptions,
 and whoever was held for it stays held, the ego moving or not, as long as its way still comes into
@@ -63,13 +68,15 @@ import numpy as np
 
 from crossroads.geometry import FloatArray, arc_lengths, placed_along
 from crossroads.sim.gridlock import Removal
-from crossroads.sim.look_ahead import WayAhead, comes_nearer, footprint_points
+from crossroads.sim.look_ahead import WayAhead, comes_nearer, footprint_points, in_front
 from crossroads.sim.sumo import SumoSession
 
 EGO_STANDING_MPS = 0.5  # [m/s] below this the ego counts as standing
 LOOKAHEAD_S = 1.0  # [s] how far ahead a pedestrian or cyclist looks, at its speed
 LOOKAHEAD_MIN_M = 1.0  # [m] ... and at least this far (one held still looks ahead too)
-PEDESTRIAN_MARGIN_M = 0.35  # [m] half a pedestrian's 0.5 m body and 0.1 m to spare
+PEDESTRIAN_RADIUS_M = 0.25  # [m] half a pedestrian's 0.5 m body
+PEDESTRIAN_MARGIN_M = PEDESTRIAN_RADIUS_M + 0.1  # [m] ... and 0.1 m to spare
+PEDESTRIAN_STANDOFF_S = 8.0  # [s] a pedestrian held this long in front of a still standing ego goes round it
 CYCLIST_MARGIN_M = 0.45  # [m] half a bicycle's 0.65 m and 0.12 m to spare
 CYCLIST_DECEL_MPS2 = 3.0  # [m/s²] the world's bicycles brake at this (sim/traffic.py vType)
 CYCLIST_STANDOFF_S = 8.0  # [s] a cyclist held this long by a still standing ego goes round it
@@ -211,6 +218,7 @@ class Courtesy:
     def __init__(self, enabled: bool = True) -> None:
         self.enabled = enabled
         self.held_pedestrians: set[str] = set()
+        self.held_in_front: dict[str, float] = {}  # pedestrians held in front of the standing ego -> since [s]
         self.held_cyclists: dict[str, float] = {}  # id -> held since [s, SUMO time]
         self.held_cars: set[str] = set()
 
@@ -228,6 +236,7 @@ class Courtesy:
         """:meth:`update` while the ego moves and no one is held (``may_act`` False): only
         pedestrians about to walk into the ego's side or rear can be held."""
         if self.enabled:
+            self.held_in_front = {}  # the ego moves
             self._hold_pedestrians(session, pedestrians, ego)
 
     def _hold_pedestrians(self, session: SumoSession, pedestrians: Movers,
@@ -281,6 +290,28 @@ class Courtesy:
                 removals.append(Removal(t, vid, t - since, session.vehicle_lane(vid)))
                 session.remove(vid)
                 del self.held_cyclists[vid]
+        return removals + self._go_round_in_front(session, pedestrians, ego)
+
+    def _go_round_in_front(self, session: SumoSession, pedestrians: Movers,
+                           ego: tuple[float, float, float, float, float, float]) -> list[Removal]:
+        """Takes out the pedestrians held :data:`PEDESTRIAN_STANDOFF_S` in front of the still
+        standing ego (module docstring); returns them."""
+        t = session.time_s
+        front: set[str] = set()
+        if ego[3] < EGO_STANDING_MPS and self.held_pedestrians:
+            held = _only(pedestrians, self.held_pedestrians)
+            if len(held.ids):
+                x, y, heading, _, length, width = ego
+                radii = np.full(len(held.ids), PEDESTRIAN_RADIUS_M)
+                front = {str(p) for p in held.ids[in_front(x, y, heading, length, width, held.x, held.y, radii)]}
+        self.held_in_front = {pid: self.held_in_front.get(pid, t) for pid in front}
+        removals = []
+        for pid, since in list(self.held_in_front.items()):
+            if t - since >= PEDESTRIAN_STANDOFF_S - 1e-9:
+                removals.append(Removal(t, pid, t - since, session.person_lane(pid)))
+                session.remove(pid)
+                del self.held_in_front[pid]
+                self.held_pedestrians.discard(pid)
         return removals
 
 

@@ -103,6 +103,19 @@ def in_the_way(ego_x: float, ego_y: float, ego_heading: float, ego_speed: float,
     return inside.any(axis=1)
 
 
+def in_front(ego_x: float, ego_y: float, ego_heading: float, length: float, width: float,
+             xs: FloatArray, ys: FloatArray, radii: FloatArray) -> np.ndarray:
+    """(n,) bool: whose body (a disc of its radius) stands where the ego, setting off straight
+    ahead, would touch it within :data:`BUFFER_M` of its front bumper: someone a standing ego
+    cannot drive off past (no margin beside its own width)."""
+    c, s = math.cos(ego_heading), math.sin(ego_heading)
+    px, py = np.asarray(xs) - (ego_x + 0.5 * length * c), np.asarray(ys) - (ego_y + 0.5 * length * s)
+    ahead = px * c + py * s
+    lateral = py * c - px * s
+    body = np.asarray(radii)
+    return (ahead > -body) & (ahead < BUFFER_M + body) & (np.abs(lateral) < 0.5 * width + body)
+
+
 def footprint_points(xs: FloatArray, ys: FloatArray, headings: FloatArray, lengths: FloatArray,
                      widths: FloatArray) -> tuple[FloatArray, FloatArray]:
     """(n, 9) x and y of points on each vehicle's footprint: its four corners, the middle of each

@@ -787,6 +787,11 @@ class SumoSession:
         libsumo.person.setSpeed(person_id, 0.0)
 
     @_sumo_errors
+    def person_lane(self, person_id: str) -> str:
+        """The lane (a crossing, walking area or sidewalk) a pedestrian is on now."""
+        return libsumo.person.getLaneID(person_id)
+
+    @_sumo_errors
     def release_person(self, person_id: str) -> None:
         """Let a held pedestrian walk on at its own speed."""
         libsumo.person.setSpeed(person_id, -1.0)

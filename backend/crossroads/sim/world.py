@@ -43,7 +43,7 @@ from crossroads.sim.ego import ego_step
 from crossroads.sim.footprint import corner_coordinates, overlapping, reach, reject_distance
 from crossroads.sim.gridlock import GridlockBreaker
 from crossroads.sim.letting_out import LettingOut, incoming_lanes
-from crossroads.sim.look_ahead import LookAhead, WayAhead
+from crossroads.sim.look_ahead import LookAhead, WayAhead, in_front
 from crossroads.sim.observation import GroundTruth, LaneShapes, LightView, Observation, Perceived
 from crossroads.sim.outcome import Outcome
 from crossroads.sim.region import Region
@@ -422,12 +422,18 @@ class World:
     def _look_ahead_for_sumo_driver(self, snap: Snapshot) -> None:
         """SUMO's driver brakes for a pedestrian, cyclist or vehicle in the ego's way
         (sim/look_ahead.py), but, while the ego stands, not for a pedestrian or cyclist the courtesy
-        holds (it waits for the ego; once the ego moves, one held still stands in its way)."""
+        holds (it waits for the ego; once the ego moves, one held still stands in its way) unless
+        it stands right in front of the ego, where setting off would touch it (the courtesy lets
+        such a one go round the car after a standoff)."""
         is_vehicle = snap.kind_code == _VEHICLE
         rows = (~is_vehicle).nonzero()[0]
         held = self._courtesy.held_pedestrians | set(self._courtesy.held_cyclists)
         if held and float(self.ego[2]) < EGO_STANDING_MPS:
-            rows = np.array([r for r in rows.tolist() if str(snap.ids[r]) not in held], dtype=np.intp)
+            x, y, heading, _, length, width = self._ego_pose()
+            radii = 0.5 * np.maximum(snap.length[rows], snap.width[rows])
+            blocking = in_front(x, y, heading, length, width, snap.x[rows], snap.y[rows], radii)
+            rows = np.array([r for r, b in zip(rows.tolist(), blocking.tolist(), strict=True)
+                             if b or str(snap.ids[r]) not in held], dtype=np.intp)
         cars = is_vehicle.nonzero()[0]
         self._look_ahead.update(self.session, self._ego_pose(),
                                 snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows],
