@@ -345,3 +345,25 @@ def polygons_of(geometry: object) -> list:
     if isinstance(geometry, MultiPolygon):
         return list(geometry.geoms)
     return [p for part in getattr(geometry, "geoms", []) for p in polygons_of(part)]
+
+
+def footprint_points(xs: FloatArray, ys: FloatArray, headings: FloatArray, lengths: FloatArray,
+                     widths: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """(n, 9) x and y of points on each vehicle's footprint: its four corners, the middle of each
+    side and its centre. A car crossing a corridor at least as wide as half a car is long has one
+    of them inside it."""
+    along = np.array([-1.0, -1.0, 1.0, 1.0, -1.0, 1.0, 0.0, 0.0, 0.0]) * 0.5
+    across = np.array([-1.0, 1.0, -1.0, 1.0, 0.0, 0.0, -1.0, 1.0, 0.0]) * 0.5
+    c, s = np.cos(headings)[:, None], np.sin(headings)[:, None]
+    a, b = lengths[:, None] * along, widths[:, None] * across
+    return xs[:, None] + a * c - b * s, ys[:, None] + a * s + b * c
+
+
+def outside_box(px: FloatArray, py: FloatArray, cx: FloatArray | float, cy: FloatArray | float,
+                heading: FloatArray | float, length: FloatArray | float, width: FloatArray | float) -> FloatArray:
+    """How far [m] each point lies outside the box (centre, heading, length, width), by the larger
+    of its distances beyond the box's ends and sides (negative inside); broadcasts."""
+    c, s = np.cos(heading), np.sin(heading)
+    dx, dy = px - cx, py - cy
+    return np.maximum(np.abs(dx * c + dy * s) - 0.5 * np.asarray(length),
+                      np.abs(dy * c - dx * s) - 0.5 * np.asarray(width))

@@ -140,3 +140,30 @@ def test_stops_at_a_red_line_and_goes_on_green() -> None:
     assert outcome.kind == "passed", outcome
     assert len(gaps_standing_on_red) > 100  # it waited for the green (the ego's red lasts 40 s here)
     assert 0.0 < min(gaps_standing_on_red) and max(gaps_standing_on_red) < 1.0
+
+
+def test_the_arc_is_straight_without_steering_and_bends_the_way_it_steers() -> None:
+    assert R.arc_pose(1.0, 2.0, 0.0, 0.0, 3.0) == pytest.approx((4.0, 2.0, 0.0))
+    x, y, heading = R.arc_pose(0.0, 0.0, 0.0, -0.3, 3.0)  # steering right
+    assert y < 0.0 and heading < 0.0 and 2.5 < x < 3.0
+    # small steps of the same arc add up to it
+    px, py, ph = 0.0, 0.0, 0.0
+    for _ in range(30):
+        px, py, ph = R.arc_pose(px, py, ph, -0.3, 0.1)
+    assert (px, py, ph) == pytest.approx((x, y, heading), abs=1e-9)
+
+
+def _seen(*rows: tuple[float, float, float, float, float, float]) -> np.ndarray:
+    return np.array(rows, dtype=float).reshape(-1, 6)
+
+
+def test_the_body_sweep_stops_for_a_cyclist_standing_beside_the_inner_side_of_a_turn() -> None:
+    # the ego at the origin heading +x (its right side at y = -1); a cyclist standing parallel 0.15 m off it
+    cyclist = _seen((-0.5, -1.0 - 0.15 - 0.325, 0.0, 0.0, 1.6, 0.65))
+    assert R.body_sweep_conflict(0.0, 0.0, 0.0, -0.35, cyclist) is not None  # turning right swings into it
+    assert R.body_sweep_conflict(0.0, 0.0, 0.0, 0.0, cyclist) is None  # straight on: past it at the same distance
+    # turning left: its side away from it, its tail swinging out 0.1 m (over 1 m at 0.35 rad): 0.3 m off is clear
+    assert R.body_sweep_conflict(0.0, 0.0, 0.0, 0.35, _seen((-0.5, -1.0 - 0.3 - 0.325, 0.0, 0.0, 1.6, 0.65))) is None
+    far = _seen((-0.5, -1.0 - 1.0 - 0.325, 0.0, 0.0, 1.6, 0.65))  # 1 m off: the turn's sweep does not reach it
+    assert R.body_sweep_conflict(0.0, 0.0, 0.0, -0.35, far) is None
+    assert R.body_sweep_conflict(0.0, 0.0, 0.0, -0.35, _seen()) is None

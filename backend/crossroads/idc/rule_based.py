@@ -7,6 +7,11 @@
   the stop line (``STOP_LINE_GAP_M``); both turned into the rates [Δδ, Δa] the ego takes as actions.
 * Yielding: if a perceived participant is (or, at constant velocity, will be within a few seconds)
   on the path ahead, brake to stop short of it. Simple and conservative: it never negotiates gaps.
+* Its body: the ego's footprint placed a few metres along the arc it steers for
+  (:func:`body_sweep_conflict`) must not come nearer than now to anyone within a margin: a car
+  turning swings its side, and the path ahead of its bumper alone missed a cyclist standing beside
+  it (``f_irregular_wide``'s right turn, seed 1056386810 of base seed 20261206: the turn's inner
+  side swept into it).
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from crossroads.constants import (
     ACCEL_MIN,
     DT_S,
     EGO_LENGTH_M,
+    EGO_WIDTH_M,
     JERK_MAX,
     L_F,
     L_R,
@@ -30,7 +36,7 @@ from crossroads.constants import (
     STEER_RATE_MAX,
     STOP_LINE_GAP_M,
 )
-from crossroads.geometry import wrap_scalar
+from crossroads.geometry import footprint_points, outside_box, wrap_scalar
 from crossroads.idc.controller import Decision, SpeedMode
 from crossroads.idc.lights import choose_speed_mode
 from crossroads.planning import CandidatePath
@@ -54,6 +60,10 @@ CHECK_TIME_S = 3.0  # [s] plus the distance covered in this time at the current 
 SEARCH_BEHIND = 10  # path points searched behind the last nearest one (5 m at 0.5 m spacing)
 SEARCH_AHEAD = 40  # ... and ahead of it (20 m: more than 0.1 s at any speed)
 PREDICTION_TIMES_S = np.arange(0.0, PREDICTION_HORIZON_S + 1e-9, PREDICTION_STEP_S)  # [s]
+SWEEP_AHEAD_M = (0.5, 1.0, 2.0, 3.0)  # [m] along the arc the ego steers for: where its body is placed
+SWEEP_MARGIN_M = 0.1  # [m] kept between the placed body and anyone else's (perceived positions are noisy)
+SWEEP_NEAR_M = 10.0  # [m] no one farther from the ego's centre is looked at
+CLOSING_M = 0.05  # [m] how much nearer than now counts as nearer
 
 
 @dataclass(frozen=True)
@@ -96,6 +106,43 @@ class _PathTable:
         h = wrap_scalar(h0 + w * wrap_scalar(self.heading[i + 1] - h0))
         profile = self.v[mode]
         return x, y, h, profile[i] + w * (profile[i + 1] - profile[i])
+
+
+def arc_pose(x: float, y: float, heading: float, steer: float, distance_m: float) -> tuple[float, float, float]:
+    """(x, y, heading) of the centre of gravity after ``distance_m`` [m] along the kinematic
+    bicycle's arc at front wheel angle ``steer`` [rad] (slip angle β = atan(L_R tan δ / (L_F + L_R)),
+    heading turning cos β tan δ / (L_F + L_R) per metre)."""
+    beta = math.atan(L_R * math.tan(steer) / WHEELBASE_M)
+    curvature = math.cos(beta) * math.tan(steer) / WHEELBASE_M
+    direction = heading + beta
+    if abs(curvature) < 1e-9:
+        return x + distance_m * math.cos(direction), y + distance_m * math.sin(direction), heading
+    turn = curvature * distance_m
+    return (x + (math.sin(direction + turn) - math.sin(direction)) / curvature,
+            y - (math.cos(direction + turn) - math.cos(direction)) / curvature,
+            heading + turn)
+
+
+def body_sweep_conflict(x: float, y: float, heading: float, steer: float, seen: np.ndarray) -> float | None:
+    """How far [m] the ego's centre goes along its arc at front wheel angle ``steer``
+    (:func:`arc_pose`, :data:`SWEEP_AHEAD_M`) before its body comes within :data:`SWEEP_MARGIN_M`
+    of a participant's footprint (``seen``: perceived rows [x, y, v, φ, L, W]) and nearer than it
+    is now, from (``x``, ``y``, ``heading``); None when it does not. Someone the ego is already
+    near but drives away from, or past at the same distance, is no conflict. The arc, not the
+    path: the ego a little off its path sets off from where it is."""
+    if len(seen) == 0:
+        return None
+    near = seen[np.hypot(seen[:, 0] - x, seen[:, 1] - y) < SWEEP_NEAR_M]
+    if len(near) == 0:
+        return None
+    px, py = footprint_points(near[:, 0], near[:, 1], near[:, 3], near[:, 4], near[:, 5])
+    gap_now = outside_box(px, py, x, y, heading, EGO_LENGTH_M, EGO_WIDTH_M).min(axis=1)
+    for ahead in SWEEP_AHEAD_M:
+        cx, cy, h = arc_pose(x, y, heading, steer, ahead)
+        gap = outside_box(px, py, cx, cy, h, EGO_LENGTH_M, EGO_WIDTH_M).min(axis=1)
+        if ((gap < SWEEP_MARGIN_M) & (gap < gap_now - CLOSING_M)).any():
+            return ahead
+    return None
 
 
 def _stop_within(speed: float, gap_m: float, least_gap_m: float) -> float:
@@ -166,6 +213,9 @@ class RuleBasedController:
             line_gap = observation.distance_to_stop_line_m - STOP_LINE_GAP_M
             accel_target = min(accel_target, _stop_within(vx, line_gap, 0.2))
         conflict_s = self._conflict_distance(observation, table, s_ego, vx)
+        swept_m = body_sweep_conflict(x, y, heading, steer_target, observation.perceived.observations)
+        if swept_m is not None and (conflict_s is None or s_ego + swept_m < conflict_s):
+            conflict_s = s_ego + swept_m
         if conflict_s is not None:
             gap = conflict_s - s_ego - EGO_LENGTH_M / 2.0 - STOP_GAP_M
             accel_target = min(accel_target, _stop_within(vx, gap, 0.5))

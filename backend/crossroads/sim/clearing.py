@@ -37,9 +37,8 @@ from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 
-from crossroads.geometry import FloatArray, distances_to_polyline, sub_polyline
+from crossroads.geometry import FloatArray, distances_to_polyline, footprint_points, sub_polyline
 from crossroads.sim.cadence import Every
-from crossroads.sim.look_ahead import footprint_points
 from crossroads.sim.sumo import (
     GREEN_LINK_STATES,
     SPEED_MODE_CLEARING,

@@ -66,9 +66,9 @@ from typing import NamedTuple, TypeVar
 
 import numpy as np
 
-from crossroads.geometry import FloatArray, arc_lengths, placed_along
+from crossroads.geometry import FloatArray, arc_lengths, footprint_points, placed_along
 from crossroads.sim.gridlock import Removal
-from crossroads.sim.look_ahead import WayAhead, comes_nearer, footprint_points, in_front
+from crossroads.sim.look_ahead import WayAhead, comes_nearer, in_front
 from crossroads.sim.sumo import SumoSession
 
 EGO_STANDING_MPS = 0.5  # [m/s] below this the ego counts as standing

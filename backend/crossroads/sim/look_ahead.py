@@ -60,7 +60,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from crossroads.geometry import FloatArray, placed_along
+from crossroads.geometry import FloatArray, footprint_points, outside_box, placed_along
 from crossroads.sim.sumo import SumoSession
 
 COMFORT_DECEL_MPS2 = 3.0  # [m/s²] the braking the corridor's length allows for
@@ -116,18 +116,6 @@ def in_front(ego_x: float, ego_y: float, ego_heading: float, length: float, widt
     return (ahead > -body) & (ahead < BUFFER_M + body) & (np.abs(lateral) < 0.5 * width + body)
 
 
-def footprint_points(xs: FloatArray, ys: FloatArray, headings: FloatArray, lengths: FloatArray,
-                     widths: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """(n, 9) x and y of points on each vehicle's footprint: its four corners, the middle of each
-    side and its centre. A car crossing a corridor at least as wide as half a car is long has one
-    of them inside it."""
-    along = np.array([-1.0, -1.0, 1.0, 1.0, -1.0, 1.0, 0.0, 0.0, 0.0]) * 0.5
-    across = np.array([-1.0, 1.0, -1.0, 1.0, 0.0, 0.0, -1.0, 1.0, 0.0]) * 0.5
-    c, s = np.cos(headings)[:, None], np.sin(headings)[:, None]
-    a, b = lengths[:, None] * along, widths[:, None] * across
-    return xs[:, None] + a * c - b * s, ys[:, None] + a * s + b * c
-
-
 def vehicle_corridor_length(speed_mps: float) -> float:
     """[m] how far ahead of its front bumper the ego looks for vehicles at ``speed_mps``."""
     v = max(speed_mps, 0.0)
@@ -168,16 +156,6 @@ class WayAhead(NamedTuple):
     points: FloatArray
     cum: FloatArray
     start_m: float
-
-
-def outside_box(px: FloatArray, py: FloatArray, cx: FloatArray | float, cy: FloatArray | float,
-                heading: FloatArray | float, length: FloatArray | float, width: FloatArray | float) -> FloatArray:
-    """How far [m] each point lies outside the box (centre, heading, length, width), by the larger
-    of its distances beyond the box's ends and sides (negative inside); broadcasts."""
-    c, s = np.cos(heading), np.sin(heading)
-    dx, dy = px - cx, py - cy
-    return np.maximum(np.abs(dx * c + dy * s) - 0.5 * np.asarray(length),
-                      np.abs(dy * c - dx * s) - 0.5 * np.asarray(width))
 
 
 def comes_nearer(within: np.ndarray, gap: FloatArray) -> np.ndarray:
