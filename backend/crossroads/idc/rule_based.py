@@ -136,13 +136,11 @@ def body_sweep_conflict(x: float, y: float, heading: float, steer: float, seen: 
     if len(near) == 0:
         return None
     px, py = footprint_points(near[:, 0], near[:, 1], near[:, 3], near[:, 4], near[:, 5])
-    gap_now = outside_box(px, py, x, y, heading, EGO_LENGTH_M, EGO_WIDTH_M).min(axis=1)
-    for ahead in SWEEP_AHEAD_M:
-        cx, cy, h = arc_pose(x, y, heading, steer, ahead)
-        gap = outside_box(px, py, cx, cy, h, EGO_LENGTH_M, EGO_WIDTH_M).min(axis=1)
-        if ((gap < SWEEP_MARGIN_M) & (gap < gap_now - CLOSING_M)).any():
-            return ahead
-    return None
+    # the body now and at every placement at once: (n, 9 points, 1 + placements)
+    cx, cy, h = np.array([(x, y, heading)] + [arc_pose(x, y, heading, steer, a) for a in SWEEP_AHEAD_M]).T
+    gap = outside_box(px[:, :, None], py[:, :, None], cx, cy, h, EGO_LENGTH_M, EGO_WIDTH_M).min(axis=1)
+    hit = ((gap[:, 1:] < SWEEP_MARGIN_M) & (gap[:, 1:] < gap[:, :1] - CLOSING_M)).any(axis=0)
+    return SWEEP_AHEAD_M[int(hit.argmax())] if hit.any() else None
 
 
 def _stop_within(speed: float, gap_m: float, least_gap_m: float) -> float:
