@@ -56,10 +56,6 @@ class _PlainController:
             line_gap = observation.distance_to_stop_line_m - STOP_LINE_GAP_M
             accel_target = min(accel_target, -vx * vx / (2.0 * line_gap) if line_gap > 0.2 else ACCEL_MIN)
         conflict_s = self.conflict_distance(observation, path, s_ego, vx)
-        swept_m = R.body_sweep_conflict(float(x), float(y), float(heading), steer_target,
-                                        observation.perceived.observations)
-        if swept_m is not None and (conflict_s is None or s_ego + swept_m < conflict_s):
-            conflict_s = s_ego + swept_m
         if conflict_s is not None:
             gap = conflict_s - s_ego - EGO_LENGTH_M / 2.0 - R.STOP_GAP_M
             accel_target = min(accel_target, -vx * vx / (2.0 * gap) if gap > 0.5 else ACCEL_MIN)
@@ -84,8 +80,7 @@ class _PlainController:
         px = seen[:, 0, None] + np.cos(seen[:, 3, None]) * seen[:, 2, None] * times
         py = seen[:, 1, None] + np.sin(seen[:, 3, None]) * seen[:, 2, None] * times
         d2 = (px[:, :, None] - points[:, 0]) ** 2 + (py[:, :, None] - points[:, 1]) ** 2
-        half_width = np.where(seen[:, 2] < R.STANDING_MPS, R.STANDING_HALF_WIDTH_M, R.CONFLICT_HALF_WIDTH_M)
-        reach2 = (half_width + seen[:, 5] / 2.0) ** 2
+        reach2 = (R.CONFLICT_HALF_WIDTH_M + seen[:, 5] / 2.0) ** 2
         blocked = (d2 < reach2[:, None, None]).any(axis=(0, 1))
         return float(arc[np.argmax(blocked)]) if blocked.any() else None
 
@@ -172,25 +167,3 @@ def test_the_body_sweep_stops_for_a_cyclist_standing_beside_the_inner_side_of_a_
     far = _seen((-0.5, -1.0 - 1.0 - 0.325, 0.0, 0.0, 1.6, 0.65))  # 1 m off: the turn's sweep does not reach it
     assert R.body_sweep_conflict(0.0, 0.0, 0.0, -0.35, far) is None
     assert R.body_sweep_conflict(0.0, 0.0, 0.0, -0.35, _seen()) is None
-
-
-def test_someone_standing_beside_the_path_blocks_it_only_within_the_egos_width_and_half_a_metre() -> None:
-    from types import SimpleNamespace
-
-    path = plan_candidates(four_way_junction(n_lanes=2), "straight")[0]
-    table = R._PathTable.of(path)
-    s_ego = 5.0
-    x, y, heading, _ = table.reference_at(s_ego, "pass")
-    ahead_x, ahead_y, ahead_heading, _ = table.reference_at(s_ego + 8.0, "pass")
-    side = (-math.sin(ahead_heading), math.cos(ahead_heading))  # to the left of the path there
-
-    def blocked(offset_m: float, speed: float) -> bool:
-        # a pedestrian 8 m ahead, offset_m to the side of the path, walking across it at speed
-        row = [ahead_x + offset_m * side[0], ahead_y + offset_m * side[1], speed, ahead_heading - math.pi / 2, 0.25, 0.5]
-        obs = SimpleNamespace(ego=np.array([x, y, 0.0, 0.0, heading, 0.0, 0.0, 0.0]),
-                              perceived=SimpleNamespace(observations=np.array([row])))
-        return R.RuleBasedController()._conflict_distance(obs, table, s_ego, 0.0) is not None
-
-    assert not blocked(2.0, 0.0)  # standing 1 m off the ego's side line
-    assert blocked(1.6, 0.0)  # standing within half a metre of it
-    assert blocked(2.0, 1.3)  # walking: the wide corridor and its prediction

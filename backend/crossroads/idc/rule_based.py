@@ -49,12 +49,6 @@ SPEED_GAIN = 0.8  # [1/s] acceleration per m/s of speed error
 ACCEL_RATE_GAIN = 4.0  # [1/s] how fast the acceleration follows its target (→ Δa)
 STEER_RATE_GAIN = 6.0  # [1/s] how fast the steering follows its target (→ Δδ)
 CONFLICT_HALF_WIDTH_M = 2.2  # [m] a participant this close to the path ahead blocks it
-# ... one standing still (below STANDING_MPS) only this close: where it stands is known, and one
-# standing beside the path (a pedestrian the world holds for the ego) waits for the ego to pass
-# (f_irregular_wide's right turn, seed 673852157 of base seed 20261206: pedestrians held 1.9-2.1 m
-# from its path on both sides of the ego standing on their crossing, each waiting for the other)
-STANDING_HALF_WIDTH_M = EGO_WIDTH_M / 2.0 + 0.5
-STANDING_MPS = 0.5  # [m/s]
 PREDICTION_HORIZON_S = 3.0  # [s] constant-velocity prediction of the others
 PREDICTION_STEP_S = 0.5  # [s]
 STOP_GAP_M = 3.0  # [m] stop this far short of a conflict (front bumper to conflict point)
@@ -256,7 +250,7 @@ class RuleBasedController:
         py = y[:, None] + (np.sin(phi) * v)[:, None] * times
         # squared distance of every predicted position (n, t) to every path point ahead (m)
         d2 = (px[:, :, None] - qx) ** 2 + (py[:, :, None] - qy) ** 2
-        reach2 = (np.where(v < STANDING_MPS, STANDING_HALF_WIDTH_M, CONFLICT_HALF_WIDTH_M) + width / 2.0) ** 2
+        reach2 = (CONFLICT_HALF_WIDTH_M + width / 2.0) ** 2
         blocked = (d2 < reach2[:, None, None]).reshape(-1, len(qx)).any(axis=0)
         first = int(blocked.argmax())  # the first blocked point, or 0 when none is
         return s[lo + 2 * first] if blocked[first] else None
