@@ -80,3 +80,48 @@ def test_the_nominal_left_turn_runs_over_the_crossings_of_its_entry_and_exit() -
             entry, exit_ = spans
             assert entry.s_in_m < path.s_stop_line + 1.0 < entry.s_out_m  # just past the stop line
             assert path.s_stop_line + 15.0 < exit_.s_in_m < path.s_exit  # where the turn ends
+
+
+def _claimed_one_by_one(span, pedestrians: np.ndarray, horizon_s: float) -> bool:
+    """claimed as first written: each pedestrian on its own, a shapely Point each."""
+    from shapely.geometry import Point
+
+    for px, py, v, phi, _, _ in np.asarray(pedestrians, np.float64).reshape(-1, 6):
+        here = Point(px, py)
+        if not span.area.contains(here):
+            continue
+        gap = span.centre.distance(here)
+        if gap <= CLAIM_HALF_WIDTH_M:
+            return True
+        foot = span.centre.interpolate(span.centre.project(here))
+        to_path = np.array([foot.x - px, foot.y - py]) / max(gap, 1e-9)
+        closing = v * float(np.cos(phi) * to_path[0] + np.sin(phi) * to_path[1])
+        if closing > 0.0 and gap - closing * horizon_s <= CLAIM_HALF_WIDTH_M:
+            return True
+    return False
+
+
+def test_claimed_tests_everyone_at_once_as_it_tested_each() -> None:
+    """claimed asks shapely about every pedestrian in one call (contains_xy, distance): the same
+    verdicts as asking about each on its own, for crowds on, near and off a crossing, on its edges
+    too, walking every way."""
+    angle = np.linspace(0.0, np.pi / 2, 80)  # a left turn of 20 m radius, and a crossing over its middle
+    turn = np.column_stack([20.0 * np.sin(angle), 20.0 - 20.0 * np.cos(angle)])
+    turn_s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(turn, axis=0).T))])
+    (straight,) = crossing_spans(PATH, S, [CROSSING])
+    (curved,) = crossing_spans(turn, turn_s, [box(12.0, 2.0, 16.0, 10.0)])
+    rng = np.random.default_rng(7)
+    verdicts = []
+    for k in range(2000):
+        span = (straight, curved)[k % 2]
+        x0, y0, x1, y1 = span.bounds
+        n = int(rng.integers(0, 6))
+        peds = np.column_stack([rng.uniform(x0 - 2.0, x1 + 2.0, n), rng.uniform(y0 - 2.0, y1 + 2.0, n),
+                                rng.uniform(0.0, 2.0, n), rng.uniform(-np.pi, np.pi, n), np.full(n, 0.3), np.full(n, 0.5)])
+        if n and rng.random() < 0.2:
+            peds[0, :2] = [x0, rng.uniform(y0, y1)]  # on the edge of the widened area
+        horizon = float(rng.uniform(0.0, CLAIM_HORIZON_MAX_S))
+        verdict = claimed(span, peds, horizon)
+        assert verdict == _claimed_one_by_one(span, peds, horizon)
+        verdicts.append(verdict)
+    assert 0 < sum(verdicts) < len(verdicts)

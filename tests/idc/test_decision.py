@@ -12,7 +12,16 @@ import torch
 
 from crossroads.constants import EGO_LENGTH_M, JERK_MAX, STEER_RATE_MAX, STOP_LINE_GAP_M
 from crossroads.idc.crosswalks import CrossingSpan, crossing_spans
-from crossroads.idc.decision import HELD_CROSSING_RELEASE_STEPS, IdcController, least_value_path
+from crossroads.idc.decision import (
+    HELD_CROSSING_RELEASE_STEPS,
+    NEAR_TIE_ABSOLUTE,
+    NEAR_TIE_RELATIVE,
+    IdcController,
+    braking_distance,
+    first_identical,
+    least_value_path,
+)
+from crossroads.idc.rule_based import RuleBasedController
 from crossroads.idc.shield import HOLD_WHEEL
 from crossroads.idc.state import build_states, select_others
 from crossroads.intersections import catalogue
@@ -20,6 +29,7 @@ from crossroads.planning import CandidatePath
 from crossroads.rl.checkpoint import load_networks
 from crossroads.rl.neural_nets import make_networks
 from crossroads.sim.config import SignalStart, WorldConfig
+from crossroads.sim.ego import braking_distance_m
 from crossroads.sim.traffic import NO_TRAFFIC
 from crossroads.sim.observation import Observation, Perceived
 from crossroads.sim.world import World
@@ -200,3 +210,91 @@ def test_one_normalisation_for_both_networks_gives_the_same_decision(preview: bo
         assert shared[0] == apart[0]
         np.testing.assert_array_equal(shared[1], apart[1])
         np.testing.assert_array_equal(shared[2], apart[2])
+
+
+def original_decision(controller: IdcController, states: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """(τ*, action, values) of the candidates' ``states`` computed plainly: the networks' own forward
+    (their torch normalisation of every row, a module call per layer), the values picked by
+    first_identical and the near tie in numpy: what the decision's fast path must give bit for bit."""
+    x = torch.from_numpy(states).to(controller._dtype)
+    with torch.inference_mode():
+        values = controller.value(x)[torch.from_numpy(first_identical(states))].double().numpy()
+        least = float(values.min())
+        best = int(np.argmax(values <= least + NEAR_TIE_RELATIVE * abs(least) + NEAR_TIE_ABSOLUTE))
+        action = controller.policy.mean_action(x[best:best + 1])[0].double().numpy()
+    return best, action, values
+
+
+@pytest.mark.parametrize("model", ["apg.pt", "dpg.pt", "pooled/apg.pt"])
+def test_the_decision_is_the_plain_computation_bit_for_bit_on_a_real_episode(model: str) -> None:
+    """The decision's fast path (the shared rows normalised once, the networks' fetched functions,
+    the pick on Python floats) on observations of a real episode, the rule controller driving the
+    nominal left turn through traffic: the same path, values and action as the plain computation
+    (``original_decision``), bit for bit, for the shipped models (APG with the path preview, DPG
+    without, the pooled APG with the lead summary too)."""
+    networks, _ = load_networks(REPO_ROOT / "models" / model)
+    controller = IdcController(networks.policy, networks.value)
+    driver = RuleBasedController()
+    config = WorldConfig(net_file=catalogue.build("c_three_lane"), task="left", warmup_s=60.0)
+    chosen = set()
+    with World(config) as world:
+        obs = world.reset(0)
+        controller.reset(world.candidates)
+        driver.reset(world.candidates)
+        for _ in range(250):
+            decision = controller.decide(obs)
+            others = select_others(obs.ego, obs.perceived.observations, obs.perceived.kinds)
+            states = build_states(obs.ego, others, world.candidates, controller.speed_mode(obs), controller.preview)
+            best, action, values = original_decision(controller, states)
+            assert decision.path_index == best
+            assert decision.path_values.tobytes() == values.tobytes()
+            assert decision.action.dtype == np.float64 and decision.action.tobytes() == action.tobytes()
+            chosen.add(best)
+            obs, outcome = world.step(driver.decide(obs).action)
+            if outcome is not None:
+                break
+    assert chosen == {0, 1, 2}  # the values chose every path somewhere: the pick was exercised
+
+
+def test_the_decision_is_the_plain_computation_on_random_candidates() -> None:
+    """The same on random candidates' states sharing x_ego and x_other, some rows repeated (a tie
+    to the first) and some not sharing (the normalisation of every row)."""
+    torch.manual_seed(4)
+    nets = make_networks("apg", 3, 64, preview=True)
+    controller = IdcController(nets.policy, nets.value)
+    rng = np.random.default_rng(9)
+    for k in range(200):
+        states = np.repeat(rng.normal(size=(1, 120)) * 10.0, 3, axis=0)
+        states[:, 8:12] = rng.normal(size=(3, 4))
+        states[:, 108:] = rng.normal(size=(3, 12))
+        if k % 4 == 1:
+            states[2] = states[0]  # identical candidates: one value, the first's
+        if k % 4 == 2:
+            states[1, 20] += 1.0  # rows that do not share x_other
+        best, action, values = controller.decide_states(states)
+        expected = original_decision(controller, states)
+        assert best == expected[0]
+        assert action.tobytes() == expected[1].tobytes() and values.tobytes() == expected[2].tobytes()
+
+
+def test_least_value_path_on_python_floats_is_numpys() -> None:
+    """The pick on Python floats is the numpy formula's, NaN and infinities included."""
+    rng = np.random.default_rng(2)
+    specials = [np.nan, np.inf, -np.inf, 0.0, -0.0, 1e-7]
+    for _ in range(2000):
+        values = rng.normal(10.0, 1e-4, size=int(rng.integers(1, 5)))
+        if rng.random() < 0.3:
+            values[int(rng.integers(len(values)))] = specials[int(rng.integers(len(specials)))]
+        least = float(np.min(values))
+        expected = int(np.argmax(values <= least + NEAR_TIE_RELATIVE * abs(least) + NEAR_TIE_ABSOLUTE))
+        assert least_value_path(values) == expected, values
+
+
+def test_the_braking_distance_on_floats_is_the_worlds() -> None:
+    """The shield's crossing check steps full braking on Python floats: the distance of
+    sim.ego.braking_distance_m, bit for bit, from a stand, at every speed and acceleration."""
+    rng = np.random.default_rng(3)
+    cases = [(0.0, 0.0), (0.0, 1.5), (1e-9, -3.0), (8.33, 1.5), (8.33, -3.0), (20.0, 9.0), (3.0, -9.0)]
+    cases += list(zip(rng.uniform(0.0, 15.0, 300).tolist(), rng.uniform(-4.0, 2.0, 300).tolist()))
+    for speed, accel in cases:
+        assert braking_distance(speed, accel) == float(braking_distance_m(speed, accel))

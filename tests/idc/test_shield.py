@@ -5,13 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from crossroads.constants import JERK_MAX, OTHER_DECEL_MPS2, STOP_LINE_GAP_M
-from crossroads.idc.constraints import EGO_CIRCLE_OFFSET_M, EGO_RADIUS_M
+from crossroads.constants import DT_S, JERK_MAX, OTHER_DECEL_MPS2, STOP_LINE_GAP_M
+from crossroads.idc.constraints import EGO_CIRCLE_OFFSET_M, EGO_RADIUS_M, deepest_by_slot, safety_constraints
 from crossroads.idc.shield import (
     SHIELD_CLEARANCE_M,
     SHIELD_RELEASE_MARGIN_M,
     EXIT_ALIGNED_RAD,
     HOLD_WHEEL,
+    _deepest_by_slot,
     backups,
     braking_action,
     followers,
@@ -230,3 +231,62 @@ def test_at_the_end_of_its_turn_braking_turns_the_wheel_back_to_straight() -> No
     command = braking_action(turning, exit_heading=0.0)
     again = backups(turning, *scene, command, exit_heading=0.0)
     np.testing.assert_allclose(again.by_obstacle[0], again.by_obstacle[1])
+
+
+def _deepest_by_slot_of_states(ego: np.ndarray, egos: np.ndarray, others: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+    """The backups' per-slot intrusions (2, 16) computed plainly: a full state for every backup,
+    step and future, through safety_constraints."""
+    steps = len(egos)
+    moved = predicted_others(others, kappa, steps)
+    follows = followers(ego, others)
+    moved[0][:, follows] = moved[1][:, follows]
+    states = np.concatenate([np.broadcast_to(egos, (2, steps, 2, 8)), np.zeros((2, steps, 2, 4)),
+                             np.broadcast_to(moved.reshape(2, steps, 1, -1), (2, steps, 2, moved[0, 0].size))], axis=-1)
+    return deepest_by_slot(safety_constraints(states, SHIELD_CLEARANCE_M)).max(axis=(0, 1))
+
+
+
+def test_the_backups_intrusions_are_safety_constraints_bit_for_bit() -> None:
+    """The shield pairs each backup's ego with both futures of every participant without building a
+    state for each pair (constraints.circle_gaps): the numbers of safety_constraints on those
+    states, bit for bit, for random scenes (every kind of slot, pads, curving participants)."""
+    rng = np.random.default_rng(6)
+    steps = 40
+    for _ in range(60):
+        ego = np.array([rng.uniform(-50, 50), rng.uniform(-50, 50), rng.uniform(0, 12), rng.normal(0, 0.3),
+                        rng.uniform(-7, 7), rng.normal(0, 0.3), rng.uniform(-0.5, 0.5), rng.uniform(-3, 1.5)])
+        others = np.tile(pad_participant(ego), (N_OTHERS, 1))
+        real = rng.random(N_OTHERS) < 0.7
+        n = int(real.sum())
+        others[real] = np.column_stack([ego[:2] + rng.uniform(-30, 30, (n, 2)), rng.uniform(0, 12, n),
+                                        rng.uniform(-7, 7, n), rng.uniform(0.3, 12, (n, 2))])
+        kappa = np.where(real, rng.normal(0, 0.05, N_OTHERS), 0.0)
+        egos = ego + np.cumsum(rng.normal(0, 0.3, (steps, 2, 8)), axis=0)  # two wandering backups
+        expected = _deepest_by_slot_of_states(ego, egos, others, kappa)
+        assert _deepest_by_slot(ego, egos, others, kappa, steps).tobytes() == expected.tobytes()
+
+
+def _predicted_future_by_future(others: np.ndarray, kappa: np.ndarray, steps: int) -> np.ndarray:
+    """predicted_others as first written: one future after the other."""
+    n = np.arange(steps + 1)[:, None]
+    out = np.empty((2, steps) + others.shape)
+    for future, decel in enumerate((0.0, OTHER_DECEL_MPS2)):
+        v = np.maximum(others[:, 2] - n * (decel * DT_S), 0.0) if decel else np.broadcast_to(others[:, 2], (steps + 1, len(others)))
+        travelled = np.concatenate([np.zeros((1, len(others))), np.cumsum(DT_S * v[:-1], axis=0)])
+        phi = others[:, 3] + travelled * kappa
+        out[future, :, :, 0] = others[:, 0] + np.cumsum(DT_S * v[:-1] * np.cos(phi[:-1]), axis=0)
+        out[future, :, :, 1] = others[:, 1] + np.cumsum(DT_S * v[:-1] * np.sin(phi[:-1]), axis=0)
+        out[future, :, :, 2] = v[1:]
+        out[future, :, :, 3] = phi[1:]
+        out[future, :, :, 4:] = others[:, 4:]
+    return out
+
+
+def test_both_futures_at_once_are_each_future_alone_bit_for_bit() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        others = np.column_stack([rng.uniform(-60, 60, (N_OTHERS, 2)), rng.uniform(-0.5, 12, N_OTHERS),
+                                  rng.uniform(-7, 7, N_OTHERS), rng.uniform(0.3, 12, (N_OTHERS, 2))])
+        kappa = rng.normal(0.0, 0.1, N_OTHERS)
+        steps = int(rng.integers(1, 60))
+        assert predicted_others(others, kappa, steps).tobytes() == _predicted_future_by_future(others, kappa, steps).tobytes()

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 import torch
 
-from crossroads.constants import STATE_DIM
+from crossroads.arrays import NumpyOps, TorchTrigNumpyOps
+from crossroads.constants import PREVIEW_DISTANCES_M, STATE_DIM
 from crossroads.geometry import wrap_angle
 from crossroads.idc import state as S
 from crossroads.planning import plan_candidates
@@ -237,6 +238,71 @@ def test_build_states_is_the_array_formula(candidates) -> None:
                 assert S.build_states(e, others, cands, mode).tobytes() == expected.tobytes()
 
 
+
+def _candidates_states(candidates, seed: int, n: int, preview: bool) -> list[np.ndarray]:
+    """``n`` steps' states of every candidate (build_states), egos near the paths, random others."""
+    rng = np.random.default_rng(seed)
+    pts = np.concatenate([c.points for c in candidates])
+    out = []
+    for k in rng.integers(0, len(pts), n):
+        x, y = pts[k] + rng.normal(0, 2.0, 2)
+        e = np.array([x, y, rng.uniform(0, 12), rng.normal(0, 0.3), rng.uniform(-20, 20), rng.normal(0, 0.3),
+                      rng.uniform(-0.5, 0.5), rng.uniform(-3, 1.5)])
+        others = S.select_others(e, np.column_stack([rng.uniform(-80, 80, (25, 2)) + [x, y], rng.uniform(0, 15, 25),
+                                                     rng.uniform(-20, 20, 25), rng.uniform(0.3, 12, (25, 2))]),
+                                 rng.choice(["vehicle", "cyclist", "pedestrian"], 25))
+        out.append(S.build_states(e, others, candidates, str(rng.choice(["pass", "stop"])), preview))
+    return out
+
+
+@pytest.mark.parametrize("xp", [NumpyOps, TorchTrigNumpyOps])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_candidates_input_is_network_input_bit_for_bit(candidates, xp, dtype) -> None:
+    """The online decision normalises the rows' shared x_ego and x_other once (candidates_input):
+    the same numbers as network_input of every row, bit for bit, with and without the preview and
+    the lead summary, on the states build_states makes."""
+    for preview in (False, True):
+        for states in _candidates_states(candidates, seed=11, n=60, preview=preview):
+            data = states.astype(dtype)
+            assert S.rows_share_ego_and_others(data)
+            for lead in (False, True):
+                expected = S.network_input(data, preview, lead, xp=xp)
+                got = S.candidates_input(data, preview, lead, xp=xp)
+                assert got.dtype == expected.dtype and got.shape == expected.shape
+                assert got.tobytes() == expected.tobytes()
+                assert got.flags.c_contiguous
+
+
+def test_candidates_input_on_random_shared_rows() -> None:
+    """The same on random rows sharing x_ego and x_other: headings far beyond ±π, large and small
+    positions, so the wrap and the ego frame are exercised everywhere."""
+    rng = np.random.default_rng(4)
+    for st in random_states(300, seed=5):
+        st[S.PHI] = rng.uniform(-50.0, 50.0)
+        S.others_block(st)[:, S.O_PHI] = rng.uniform(-50.0, 50.0, 16)
+        st[:2] *= rng.choice([0.01, 1.0, 100.0])
+        rows = np.concatenate([np.repeat(st[None], 3, 0), rng.normal(0.0, 5.0, (3, 12))], axis=1)
+        rows[:, S.TRACK] = rng.normal(0.0, 3.0, (3, 4))
+        data = rows.astype(np.float32)
+        for lead in (False, True):
+            expected = S.network_input(data, True, lead, xp=TorchTrigNumpyOps)
+            assert S.candidates_input(data, True, lead, xp=TorchTrigNumpyOps).tobytes() == expected.tobytes()
+
+
+def test_rows_share_ego_and_others() -> None:
+    st = np.repeat(random_states(1)[0][None], 3, 0)
+    st[:, S.TRACK] = np.arange(12.0).reshape(3, 4)  # x_track may differ
+    assert S.rows_share_ego_and_others(st)
+    assert S.rows_share_ego_and_others(st[:1])
+    for column in (S.VX, S.OTHERS.start, S.OTHERS.stop - 1):
+        other = st.copy()
+        other[2, column] += 1e-9
+        assert not S.rows_share_ego_and_others(other)
+    other = st.copy()
+    other[:, S.PX] = np.nan  # a NaN is never shared
+    assert not S.rows_share_ego_and_others(other)
+
+
 def test_the_path_preview_numpy_and_torch_agree_and_leave_the_108_values_alone() -> None:
     """build_states(..., preview=True) (online) and preview_torch (training) give the same 12 values:
     the path 5-20 m ahead in the ego's frame, its heading and v_ref there."""
@@ -268,6 +334,41 @@ def test_the_path_preview_numpy_and_torch_agree_and_leave_the_108_values_alone()
         ref = S.reference_points_torch(tensors, egos[:, :2], index, mode == "stop")
         np.testing.assert_allclose(S.preview_torch(tensors, egos, ref, index, mode == "stop").numpy(),
                                    states[:, S.PREVIEW], atol=1e-9)
+
+
+
+def _preview_with_numpy(candidates, ego: np.ndarray, mode: str) -> np.ndarray:
+    """The path preview (C, 12) of build_states as numpy computes it: np.interp of each path's
+    points at the distances ahead of the ego's foot, then preview_features."""
+    refs = S.references(candidates, float(ego[S.PX]), float(ego[S.PY]), mode)
+    st = S._stacked(tuple(candidates))
+    i, w, _ = S._nearest(st, float(ego[S.PX]), float(ego[S.PY]))
+    rows = np.arange(len(candidates))
+    arc = st.s0[rows, i] + np.array(w) * st.ds[rows, i]
+    ahead = np.empty((4, len(candidates), S.N_PREVIEW))
+    for c, path in enumerate(candidates):
+        s = np.asarray(path.s, np.float64)
+        target = np.minimum(arc[c] + np.asarray(PREVIEW_DISTANCES_M), s[-1])
+        values = (path.points[:, 0], path.points[:, 1], np.unwrap(path.heading), path.v_pass if mode == "pass" else path.v_stop)
+        for row, value in enumerate(values):
+            ahead[row, c] = np.interp(target, s, np.asarray(value, np.float64))
+    assert refs.index.tolist() == list(i)
+    heading = np.mod(ahead[2] + math.pi, 2.0 * math.pi) - math.pi
+    return S.preview_features(np.broadcast_to(ego, (len(candidates), 8)), ahead[0], ahead[1], heading, ahead[3])
+
+
+def test_the_path_preview_on_floats_is_numpys_bit_for_bit(candidates) -> None:
+    """build_states works the preview out on Python floats: np.interp's and preview_features'
+    numbers, bit for bit, for egos all along the paths, beyond their ends and before their starts."""
+    rng = np.random.default_rng(12)
+    pts = np.concatenate([c.points for c in candidates])
+    others = np.tile(S.pad_participant(np.zeros(8)), (S.N_OTHERS, 1))
+    tuple_candidates = tuple(candidates)
+    for k in [*rng.integers(0, len(pts), 300), 0, len(pts) - 1]:
+        ego = np.array([*(pts[k] + rng.normal(0.0, 3.0, 2)), 5.0, 0.0, rng.uniform(-10.0, 10.0), 0.0, 0.0, 0.0])
+        for mode in ("pass", "stop"):
+            states = S.build_states(ego, others, tuple_candidates, mode, preview=True)
+            assert states[:, S.PREVIEW].tobytes() == _preview_with_numpy(candidates, ego, mode).tobytes()
 
 
 def test_the_path_preview_sees_the_turn_ahead() -> None:

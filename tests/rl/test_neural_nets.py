@@ -10,7 +10,17 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from crossroads.constants import JERK_MAX, STATE_DIM, STEER_RATE_MAX, XI_RANGES
-from crossroads.rl.neural_nets import MLP, XI_KEYS, Adversary, DrivingPolicy, ValueNet, make_networks, mlp
+from crossroads.rl.neural_nets import (
+    MLP,
+    XI_KEYS,
+    Adversary,
+    DrivingPolicy,
+    ValueNet,
+    make_networks,
+    mlp,
+    network_width,
+    run_steps,
+)
 
 torch.manual_seed(0)
 POLICY = DrivingPolicy(2, 32)
@@ -159,3 +169,38 @@ def test_the_mlp_gives_nn_sequentials_numbers_and_keys_and_gradients() -> None:
 def test_the_mlp_refuses_layers_its_loop_does_not_run(layer: torch.nn.Module) -> None:
     with pytest.raises(TypeError, match="Linear and exact GELU"):
         MLP(torch.nn.Linear(2, 2), layer)
+
+
+@pytest.mark.parametrize(("preview", "lead", "encoder", "dtype"), [
+    (False, False, 0, torch.float32), (True, False, 0, torch.float32), (True, True, 16, torch.float32),
+    (False, True, 0, torch.float64),
+])
+def test_the_fetched_functions_give_the_modules_numbers_bit_for_bit(preview: bool, lead: bool, encoder: int,
+                                                                     dtype: torch.dtype) -> None:
+    """value_function and mean_action_function (the online decision's fast path: parameters fetched
+    once, no module call per layer) compute what value_of_input and mean_action_of_input do, bit for
+    bit, on one row, a few and many; and see parameters changed in place."""
+    torch.manual_seed(2)
+    nets = make_networks("dpg", 5, 64, preview=preview, lead=lead, encoder=encoder)
+    policy, value = nets.policy.to(dtype), nets.value.to(dtype)
+    mean_action, value_of = policy.mean_action_function(), value.value_function()
+    x = torch.randn(40, network_width(preview, lead), dtype=dtype) * 3.0
+    with torch.inference_mode():
+        for rows in (x[:1], x[:3], x[5:6], x):
+            assert torch.equal(mean_action(rows), policy.mean_action_of_input(rows))
+            assert torch.equal(value_of(rows), value.value_of_input(rows))
+    with torch.no_grad():  # an optimiser's step: in place
+        policy.net[0].weight.mul_(1.5)
+        value.net[-1].bias.add_(0.25)
+    with torch.inference_mode():
+        assert torch.equal(mean_action(x), policy.mean_action_of_input(x))
+        assert torch.equal(value_of(x), value.value_of_input(x))
+
+
+def test_the_mlps_steps_are_its_layers() -> None:
+    net = mlp(12, 3, 2, 16)
+    steps = net.steps()
+    assert [step is None for step in steps] == [False, True, False, True, False]
+    assert steps[0][0] is net[0].weight and steps[-1][1] is net[-1].bias
+    x = torch.randn(4, 12)
+    assert torch.equal(run_steps(x, steps), net(x))

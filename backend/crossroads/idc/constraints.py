@@ -84,28 +84,39 @@ def safety_constraints(state: Any, safety_margin_m: float = SAFETY_MARGIN_M) -> 
     xp = ops(state)
     state = xp.asarray(state, like=state)
     ex, ey, er = ego_circles(state)  # [..., 2]
-    o = others_block(state)  # [..., 16, 6]
-    ox, oy, ophi = o[..., O_PX], o[..., O_PY], o[..., O_PHI]
-    length, width = o[..., O_L], o[..., O_W]
-    off = xp.maximum(length - width, 0.0 * length) / 2.0
-    r2 = width / 2.0
-    r1 = xp.sqrt(length * length / 4.0 + width * width / 4.0 + _EPS)
-    cx, sx = off * xp.cos(ophi), off * xp.sin(ophi)
-    n2 = len(TWO_CIRCLE_SLOTS)
-    # two-circle participants (the leading slots): centres [..., n2, 2], radii [..., n2, 1]
-    two_x = xp.stack([ox - cx, ox + cx], axis=-1)[..., :n2, :]
-    two_y = xp.stack([oy - sx, oy + sx], axis=-1)[..., :n2, :]
-    # one-circle participants (the trailing slots): [..., n1, 1]
-    one_x, one_y = ox[..., n2:, None], oy[..., n2:, None]
+    two_x, two_y, r2, one_x, one_y, r1 = participant_circles(others_block(state))
 
     def gap(cxs: Any, cys: Any, rs: Any) -> Any:
         """[..., slots, circles, 2 ego circles] → flattened [..., slots·circles·2]."""
-        dx = cxs[..., :, :, None] - ex[..., None, None, :]
-        dy = cys[..., :, :, None] - ey[..., None, None, :]
-        g = rs[..., :, :, None] + er + safety_margin_m - xp.sqrt(dx * dx + dy * dy + _EPS)
+        g = circle_gap(cxs[..., :, :, None], cys[..., :, :, None], rs[..., :, :, None],
+                       ex[..., None, None, :], ey[..., None, None, :], er, safety_margin_m)
         return g.reshape(tuple(g.shape[:-3]) + (-1,))
 
-    return xp.concat([gap(two_x, two_y, r2[..., :n2, None]), gap(one_x, one_y, r1[..., n2:, None])], axis=-1)
+    return xp.concat([gap(two_x, two_y, r2), gap(one_x, one_y, r1)], axis=-1)
+
+
+def participant_circles(o: Any) -> tuple[Any, Any, Any, Any, Any, Any]:
+    """The circles of the participants ``o`` [..., 16, 6] (module docstring): the two-circle slots'
+    (the leading ones) centres x, y [..., n2, 2] (rear, front) and radius [..., n2, 1], then the
+    one-circle slots' (the trailing ones) centre x, y [..., n1, 1] and radius [..., n1, 1]."""
+    xp = ops(o)
+    n2 = len(TWO_CIRCLE_SLOTS)
+    two, one = o[..., :n2, :], o[..., n2:, :]
+    ox, oy, length, width = two[..., O_PX], two[..., O_PY], two[..., O_L], two[..., O_W]
+    off = xp.maximum(length - width, 0.0 * length) / 2.0
+    cx, sx = off * xp.cos(two[..., O_PHI]), off * xp.sin(two[..., O_PHI])
+    two_x = xp.stack([ox - cx, ox + cx], axis=-1)
+    two_y = xp.stack([oy - sx, oy + sx], axis=-1)
+    length, width = one[..., O_L], one[..., O_W]
+    r1 = xp.sqrt(length * length / 4.0 + width * width / 4.0 + _EPS)
+    return two_x, two_y, (two[..., O_W] / 2.0)[..., None], one[..., O_PX, None], one[..., O_PY, None], r1[..., None]
+
+
+def circle_gap(cx: Any, cy: Any, r: Any, ex: Any, ey: Any, er: Any, safety_margin_m: float) -> Any:
+    """g of circles at (cx, cy) of radius r against ego circles at (ex, ey) of radius er, broadcast:
+    r + r_ego + margin − ‖c − c_ego‖ (the distance through √(· + ε), differentiable at 0)."""
+    dx, dy = cx - ex, cy - ey
+    return r + er + safety_margin_m - ops(dx).sqrt(dx * dx + dy * dy + _EPS)
 
 
 _SLOT_STARTS = np.array([SAFETY_SLOT.index(slot) for slot in range(len(KIND_OF_SLOT))])

@@ -12,22 +12,28 @@ caller (``load_controller`` of :mod:`crossroads.evaluation.policies`, through ``
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import torch
 from torch import nn
 
 from crossroads.arrays import TorchTrigNumpyOps
-from crossroads.constants import EGO_LENGTH_M
+from crossroads.constants import ACCEL_MAX, ACCEL_MIN, EGO_LENGTH_M, JERK_MAX
 from crossroads.idc.controller import Decision, SpeedMode
 from crossroads.idc.crosswalks import CrossingSpan, can_stand_short_of, claims_ahead, crossing_spans, nearest_claimed
 from crossroads.idc.lights import light_holds_at_line, speed_mode_from
 from crossroads.idc.observed import observed_others
 from crossroads.idc.shield import shield_action
-from crossroads.idc.state import build_states, network_input, select_others
+from crossroads.idc.state import (
+    build_states,
+    candidates_input,
+    network_input,
+    rows_share_ego_and_others,
+    select_others,
+)
 from crossroads.planning import CandidatePath
-from crossroads.sim.ego import braking_distance_m
+from crossroads.sim.ego import ego_step_floats
 from crossroads.sim.observation import Observation
 
 
@@ -42,6 +48,8 @@ from crossroads.sim.observation import Observation
 # the cross traffic SUMO lets go (4 more collisions at 150 s, seeds 1092899071, 154812432).
 # docs/tried/shield.md, "Holding a crossing it braked for"
 HELD_CROSSING_RELEASE_STEPS = 10
+
+InputFunction = Callable[[torch.Tensor], torch.Tensor]  # a network on states already normalised
 
 
 class IdcController:
@@ -68,6 +76,7 @@ class IdcController:
                               and getattr(policy, "low", None) is not None and policy.low.dtype == self._dtype
                               and self._numpy_dtype is not None
                               and (policy.preview, policy.lead) == (value.preview, value.lead))
+        self._value_of_input, self._action_of_input = self._input_functions()
 
     def reset(self, candidates: Sequence[CandidatePath]) -> None:
         self._candidates = tuple(candidates)
@@ -75,6 +84,21 @@ class IdcController:
         self._spans = {}
         self._held_crossing = None
         self._unclaimed_steps = 0
+        self._value_of_input, self._action_of_input = self._input_functions()  # the parameters as they are now
+
+    def _input_functions(self) -> tuple[InputFunction, InputFunction]:
+        """What :meth:`decide_states` calls on the normalised candidates (with ``_shared_input``):
+        the value and the mean action as functions of parameters fetched once
+        (``value_function``, ``mean_action_function`` of :mod:`crossroads.rl.neural_nets`: the same
+        numbers, without a module call per layer) where the networks offer them, else their
+        ``value_of_input`` and ``mean_action_of_input``."""
+        value_of = getattr(self.value, "value_of_input", None)
+        action_of = getattr(self.policy, "mean_action_of_input", None)
+        if hasattr(self.value, "value_function"):
+            value_of = self.value.value_function()
+        if hasattr(self.policy, "mean_action_function"):
+            action_of = self.policy.mean_action_function()
+        return value_of, action_of
 
     def speed_mode(self, observation: Observation) -> SpeedMode:
         return speed_mode_from(_light_holds(observation), observation.front_vehicle_stopped_s)
@@ -82,26 +106,37 @@ class IdcController:
     def decide_states(self, states: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
         """(τ*, action (2,), values (n,)) for the states of the n candidate paths (n, 108; 120 with
         the path preview)."""
+        return self._decide_states(states, shared_rows=None)
+
+    def _decide_states(self, states: np.ndarray, shared_rows: bool | None) -> tuple[int, np.ndarray, np.ndarray]:
+        """:meth:`decide_states`; ``shared_rows``: whether the rows share x_ego and x_other (as
+        :func:`build_states` makes them), None where that is to be checked."""
+        # identical states get one value, the first's: a tie goes to the first path (below)
+        firsts = first_identical(states).tolist()
         with torch.inference_mode():
-            # identical states get one value, the first's: a tie goes to the first path (below)
-            same = torch.from_numpy(first_identical(states))
             if self._shared_input:  # the networks' own numbers, bit for bit, one normalisation fewer
-                x = torch.from_numpy(self._normalised(states))
-                value_of, action_of = self.value.value_of_input, self.policy.mean_action_of_input
+                x = torch.from_numpy(self._normalised(states, shared_rows))
+                value_of, action_of = self._value_of_input, self._action_of_input
             else:
                 x = torch.from_numpy(np.ascontiguousarray(states)).to(self._dtype)
                 value_of, action_of = self.value, self.policy.mean_action
-            values = value_of(x)[same].double().numpy()
-            best = least_value_path(values)
-            action = action_of(x[best:best + 1])[0]
-        return best, action.double().numpy(), values
+            computed = value_of(x).tolist()  # Python floats: the few values are picked and compared as such
+            values = [computed[first] for first in firsts]
+            best = _least_of(values)
+            action = action_of(x[best:best + 1])[0].tolist()
+        return best, np.array(action), np.array(values)
 
-    def _normalised(self, states: np.ndarray) -> np.ndarray:
+    def _normalised(self, states: np.ndarray, shared_rows: bool | None = None) -> np.ndarray:
         """``network_input`` of the candidates' states in the networks' dtype, in numpy with torch's
         sin and cos: the numbers the networks' own torch normalisation gives, at a fraction of its
-        cost on a few states (:class:`crossroads.arrays.TorchTrigNumpyOps`)."""
+        cost on a few states (:class:`crossroads.arrays.TorchTrigNumpyOps`); x_ego and x_other
+        normalised once (``candidates_input``) where the rows share them (``shared_rows``, checked
+        when None). Contiguous either way (one concatenate, or written into one array)."""
         data = np.ascontiguousarray(states, dtype=self._numpy_dtype)
-        return network_input(data, self.policy.preview, self.policy.lead, xp=TorchTrigNumpyOps)  # one concatenate: contiguous
+        if shared_rows is None:
+            shared_rows = rows_share_ego_and_others(data)
+        normalise = candidates_input if shared_rows else network_input
+        return normalise(data, self.policy.preview, self.policy.lead, xp=TorchTrigNumpyOps)
 
     def decide(self, observation: Observation) -> Decision:
         holds = _light_holds(observation)  # once a step: the mode and the shield's line both follow from it
@@ -112,7 +147,7 @@ class IdcController:
             others, kappa = select_others(observation.ego, observation.perceived.observations,
                                           observation.perceived.slot_kinds()), None
         states = build_states(observation.ego, others, self._candidates, mode, self.preview)
-        best, action, values = self.decide_states(states)
+        best, action, values = self._decide_states(states, shared_rows=True)  # build_states' rows share them
         if kappa is None:
             return Decision(action, best, mode, values)
         line_m, crossing = self._shield_line(holds, observation, best)
@@ -167,8 +202,8 @@ class IdcController:
         if span is None:
             return None
         gap = span.s_in_m - front_s
-        # the braking distance only when needed: stepping f_ego costs ~0.2 ms
-        if not can_stand_short_of(gap, float(braking_distance_m(speed, float(ego[7])))):
+        # the braking distance only when needed: stepping f_ego costs ~40 µs
+        if not can_stand_short_of(gap, braking_distance(speed, float(ego[7]))):
             return None
         return gap, span
 
@@ -189,10 +224,18 @@ def least_value_path(values: np.ndarray) -> int:
     14.909687 / 14.909688 in onnxruntime, so each drove another path from there on. A tie of
     1e-5 (relative) is ~80 float32 roundings wide, and values that close say nothing of which
     path is better."""
-    v = np.asarray(values, dtype=float).reshape(-1)
-    least = float(np.min(v))
-    tied = v <= least + NEAR_TIE_RELATIVE * abs(least) + NEAR_TIE_ABSOLUTE
-    return int(np.argmax(tied))
+    return _least_of(np.asarray(values, dtype=float).reshape(-1).tolist())
+
+
+def _least_of(values: list[float]) -> int:
+    """:func:`least_value_path` of values as Python floats (the decision's few, without a numpy call):
+    the same float64 comparisons, and numpy's answers where a NaN or an infinity is involved (the
+    first path: a NaN is the least of all to ``np.min`` and no value is within a NaN's tie)."""
+    if any(v != v for v in values):
+        return 0
+    least = min(values)
+    threshold = least + NEAR_TIE_RELATIVE * abs(least) + NEAR_TIE_ABSOLUTE
+    return next((path for path, v in enumerate(values) if v <= threshold), 0)
 
 
 def first_identical(states: np.ndarray) -> np.ndarray:
@@ -230,3 +273,19 @@ def _line_if(holds: bool, observation: Observation) -> float | None:
     the ego there, else None. Why the shield needs it: the trained policies follow the stop profile
     loosely and crossed a red line on an empty road at 4.7 m/s (docs/tried/world.md, "Red lights")."""
     return observation.distance_to_stop_line_m if holds else None
+
+
+BRAKING_STEPS_MAX = 400  # f_ego stops from 8.33 m/s in ~35 steps: the cap only guards absurd inputs
+
+
+def braking_distance(speed: float, accel: float) -> float:
+    """[m] :func:`crossroads.sim.ego.braking_distance_m` of one speed [m/s] (≥ 0) and acceleration
+    [m/s²]: the same f_ego steps of full braking from a stand-in state on a straight road, stepped
+    on Python floats (``ego_step_floats``, what ``ego_step`` does for one state) without its numpy
+    calls per step (a tenth of the time; the shield asks every step someone claims a crossing)."""
+    state: tuple[float, ...] = (0.0, 0.0, speed, 0.0, 0.0, 0.0, 0.0, min(max(accel, ACCEL_MIN), ACCEL_MAX))
+    for _ in range(BRAKING_STEPS_MAX):
+        if not state[2] > 0.0:
+            break
+        state = ego_step_floats(state, 0.0, -JERK_MAX)
+    return state[0]

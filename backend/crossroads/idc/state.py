@@ -37,6 +37,7 @@ without it ignore them (they read the first 108), so a preview state serves both
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Sequence
 from typing import Any, NamedTuple
@@ -44,12 +45,13 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from crossroads.arrays import Ops, ops
+from crossroads.arrays import NumpyOps, Ops, ops
 from crossroads.constants import (
     ACCEL_MIN,
     EGO_LENGTH_M,
     EGO_STATE_DIM,
     EGO_WIDTH_M,
+    LEAD_DIM,
     LEAD_LATERAL_MARGIN_M,
     LEAD_LOOKAHEAD_M,
     N_CYCLISTS_OBSERVED,
@@ -447,7 +449,9 @@ class _Stacked(NamedTuple):
     ahead: tuple[dict[str, np.ndarray], ...]  # per candidate: s, x, y, unwrapped heading, pass, stop
     row_starts: np.ndarray  # (C,) c·M: where candidate c's segments start in the flattened (C, M)
     scale: float  # [m] the largest |coordinate| of the paths' points, and more (the rounding's scale)
-    segments: dict[str, list[list[float]]]  # mode → the rows of pack[mode] as Python floats (made when first asked)
+    # mode → the rows of pack[mode] as Python floats, "preview " + mode → the points of the path
+    # preview (_preview_points), made when first asked
+    segments: dict[str, Any]
     shared: int  # the first segments every candidate has alike (start, vector, heading): their common stretch
 
 
@@ -603,7 +607,7 @@ def build_states(
     out[:, OTHERS] = np.asarray(others16, dtype=np.float64).reshape(-1)
     out[:, TRACK] = _tracks(st, i, w, mode, px, py, vx, phi)
     if preview:
-        out[:, PREVIEW] = _preview_numpy(st, e, np.array(i), np.array(w), mode)
+        out[:, PREVIEW] = _preview(st, e, i, w, mode)
     return out
 
 
@@ -645,7 +649,7 @@ def tracked_state(
     _fill_slots(out[OTHERS].reshape(N_OTHERS, OTHER_STATE_DIM), obs, _slot_rows(e, obs, np.asarray(kinds)),
                 px, py, phi)
     if preview:  # every candidate's, as build_states computes them, and the tracked one's kept
-        out[PREVIEW] = _preview_numpy(st, e, np.array(i), np.array(w), mode)[index]
+        out[PREVIEW] = _preview(st, e, i, w, mode)[index]
     return index, out
 
 
@@ -682,18 +686,69 @@ def _segments(st: _Stacked, mode: str) -> list[list[float]]:
     return rows
 
 
-def _preview_numpy(st: _Stacked, ego: FloatArray, i: NDArray[np.intp], w: FloatArray, mode: str) -> FloatArray:
+def _preview(st: _Stacked, ego: FloatArray, i: list[int], w: list[float], mode: str) -> FloatArray:
     """The path preview ``(C, 12)`` of every candidate, the foot of candidate c a fraction ``w[c]``
-    along its segment ``i[c]`` (the numbers of :func:`preview_torch`, up to rounding)."""
-    rows = np.arange(len(i))
-    arc = st.s0[rows, i] + w * st.ds[rows, i]
-    ahead = np.empty((4, len(i), N_PREVIEW))
-    for c, path in enumerate(st.ahead):
-        target = np.minimum(arc[c] + np.asarray(PREVIEW_DISTANCES_M), path["s"][-1])
-        for row, key in enumerate(("x", "y", "heading", mode)):
-            ahead[row, c] = np.interp(target, path["s"], path[key])
-    heading = np.mod(ahead[2] + math.pi, 2.0 * math.pi) - math.pi
-    return preview_features(np.broadcast_to(ego, (len(i), ego.shape[-1])), ahead[0], ahead[1], heading, ahead[3])
+    along its segment ``i[c]`` (the numbers of :func:`preview_torch`, up to rounding).
+
+    On Python floats: ``np.interp`` of each path's values at the distances ahead and
+    :func:`preview_features`, term by term, the same arithmetic in the same order, so the same
+    numbers (tests/idc/test_state.py) without some thirty numpy calls on arrays of a few values
+    (most of :func:`build_states`' time with them: benchmarks/decision_latency.py)."""
+    px, py, phi = float(ego[PX]), float(ego[PY]), float(ego[PHI])
+    sin_phi, cos_phi = math.sin(phi), math.cos(phi)  # numpy's float64 sin and cos (as in _track)
+    rows = []
+    for k, fraction, (s, columns, s0, ds) in zip(i, w, _preview_points(st, mode)):
+        arc = s0[k] + fraction * ds[k]
+        ahead = [_interp_at(min(arc + distance, s[-1]), s, columns) for distance in PREVIEW_DISTANCES_M]
+        lateral, heading, speed = [], [], []
+        for x, y, h, v in ahead:
+            h = (h + math.pi) % (2.0 * math.pi) - math.pi  # the path's heading, wrapped
+            lateral.append(-sin_phi * (x - px) + cos_phi * (y - py))
+            heading.append((h - phi + math.pi) % (2.0 * math.pi) - math.pi)
+            speed.append(v)
+        rows.append(lateral + heading + speed)
+    return np.array(rows, dtype=np.float64).reshape(len(rows), PREVIEW_DIM)
+
+
+PreviewPoints = tuple[list[float], tuple[list[float], ...], list[float], list[float]]
+
+
+def _preview_points(st: _Stacked, mode: str) -> list[PreviewPoints]:
+    """Per candidate, as Python floats: its points' arc lengths; their x, y, unwrapped heading and
+    v_ref of ``mode``; its segments' arc lengths at their start and along them (``st.s0``,
+    ``st.ds``). Made when first asked, then kept in ``st.segments``."""
+    key = "preview " + mode
+    points = st.segments.get(key)
+    if points is None:
+        points = st.segments[key] = [
+            (path["s"].tolist(), tuple(path[k].tolist() for k in ("x", "y", "heading", mode)), s0, ds)
+            for path, s0, ds in zip(st.ahead, st.s0.tolist(), st.ds.tolist())]
+    return points
+
+
+def _interp_at(t: float, s: list[float], columns: tuple[list[float], ...]) -> list[float]:
+    """``np.interp(t, s, column)`` of each column, on Python floats: its arithmetic (slope of the
+    segment times the distance into it, plus its start) and its special cases (a NaN, before the
+    first point, at a point or past the last)."""
+    if t != t:
+        return [t] * len(columns)
+    j = bisect.bisect_right(s, t) - 1  # s[j] ≤ t < s[j + 1]
+    if j < 0:
+        return [column[0] for column in columns]
+    if j >= len(s) - 1 or s[j] == t:
+        return [column[j] for column in columns]
+    s_j, s_next = s[j], s[j + 1]
+    out = []
+    for column in columns:
+        y_j, y_next = column[j], column[j + 1]
+        slope = (y_next - y_j) / (s_next - s_j)
+        value = slope * (t - s_j) + y_j
+        if value != value:  # np.interp tries from the other end, then a flat segment's value
+            value = slope * (t - s_next) + y_next
+            if value != value and y_j == y_next:
+                value = y_j
+        out.append(value)
+    return out
 
 
 def _track(px: float, py: float, vx: float, phi: float, w: float, ax: float, ay: float, abx: float,
@@ -810,3 +865,66 @@ def network_input(states: Any, preview: bool = False, lead: bool = False, xp: Op
     if lead:
         parts.append(_lead(xp, states, o, ahead, lateral))
     return xp.concat(parts, axis=-1)
+
+
+# the divisors of network_input, per column: x_ego's (1 where the column is kept as it is or zeroed),
+# x_track's, a participant's (1 where its column is computed otherwise) and the path preview's
+_EGO_SCALES = (1.0, 1.0, SPEED_SCALE_MPS, SPEED_SCALE_MPS, 1.0, YAW_RATE_SCALE, STEER_MAX, abs(ACCEL_MIN))
+_POSE_COLUMNS = [PX, PY, PHI]  # x_ego's absolute pose, replaced by 0
+_TRACK_SCALES = (TRACK_POSITION_SCALE_M, TRACK_POSITION_SCALE_M, SPEED_SCALE_MPS, ANGLE_SCALE)
+_OTHER_SCALES = (1.0, 1.0, SPEED_SCALE_MPS, 1.0, SIZE_SCALE_M, SIZE_SCALE_M)
+_PREVIEW_SCALES = (PREVIEW_LATERAL_SCALE_M,) * N_PREVIEW + (ANGLE_SCALE,) * N_PREVIEW + (SPEED_SCALE_MPS,) * N_PREVIEW
+
+
+def candidates_input(states: np.ndarray, preview: bool = False, lead: bool = False,
+                     xp: type[NumpyOps] = NumpyOps) -> np.ndarray:
+    """:func:`network_input` of the candidates' states of one step (``states`` (n, W), float32 or
+    float64, numpy), whose rows share x_ego and x_other as :func:`build_states` makes them: those
+    are normalised once, from the first row, and x_track and the path preview row by row.
+
+    The same operations on the same floats as :func:`network_input` (elementwise, each value on its
+    own: a division by 1 leaves a value as it is, a product is the same either way round), so the
+    same numbers bit for bit with ``xp`` its namespace, in a few numpy calls on a (16, 6) block
+    instead of some sixty on stacked (n, 16) columns: the online decision's normalisation
+    (:class:`crossroads.idc.decision.IdcController`). Rows that do not share them get the first
+    row's x_ego and x_other: check with :func:`rows_share_ego_and_others` where that can happen."""
+    if preview and states.shape[-1] != PREVIEW_STATE_DIM:
+        return network_input(states, preview, lead, xp)  # its error
+    dtype = states.dtype.type
+    width = PREVIEW_STATE_DIM if preview else STATE_DIM
+    out = np.empty((len(states), width + (LEAD_DIM if lead else 0)), dtype=dtype)
+    first = states[0]
+    ego = first[EGO] / np.array(_EGO_SCALES, dtype)
+    ego[_POSE_COLUMNS] = 0.0
+    out[:, EGO] = ego
+    out[:, TRACK] = states[:, TRACK] / np.array(_TRACK_SCALES, dtype)
+    others = first[OTHERS].reshape(N_OTHERS, OTHER_STATE_DIM)
+    out[:, OTHERS] = _others_input(xp, others, first[PX:PY + 1], first[PHI:PHI + 1]).reshape(-1)
+    if preview:
+        out[:, PREVIEW] = states[:, PREVIEW] / np.array(_PREVIEW_SCALES, dtype)
+    if lead:
+        row = first[None]
+        out[:, width:] = _lead(xp, row, others[None], *_ego_frame(xp, row, others[None]))
+    return out
+
+
+def _others_input(xp: type[NumpyOps], others: np.ndarray, position: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """x_other's part of :func:`network_input` (16, 6) for an ego at ``position`` (x, y) heading
+    ``phi`` (each an array of the states' dtype): the arithmetic of :func:`_ego_frame` and
+    :func:`network_input`, column by column."""
+    c, s = xp.cos(phi), xp.sin(phi)
+    d = others[:, O_PX:O_PY + 1] - position  # [dx, dy]
+    cd, sd = d * c, d * s  # [c·dx, c·dy], [s·dx, s·dy]
+    out = others / np.array(_OTHER_SCALES, others.dtype)
+    np.add(cd[:, 0], sd[:, 1], out=out[:, O_PX])  # ahead = c·dx + s·dy
+    np.subtract(cd[:, 1], sd[:, 0], out=out[:, O_PY])  # lateral = c·dy − s·dx
+    out[:, O_PX:O_PY + 1] /= POSITION_SCALE_M
+    out[:, O_PHI] = xp.wrap(others[:, O_PHI] - phi) / ANGLE_SCALE
+    return out
+
+
+def rows_share_ego_and_others(states: np.ndarray) -> bool:
+    """Whether every row of ``states`` (n, W) has the first row's x_ego and x_other, value for value
+    (what :func:`candidates_input` needs; a NaN is never equal)."""
+    head = states[:, :OTHERS.stop]
+    return bool((head[1:, EGO] == head[0, EGO]).all() and (head[1:, OTHERS] == head[0, OTHERS]).all())

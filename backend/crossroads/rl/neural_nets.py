@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable
 from typing import NamedTuple
 
 from typing import TYPE_CHECKING
@@ -68,6 +69,8 @@ XI_LOW = tuple(XI_RANGES[k][0] for k in XI_KEYS)  # [m, m, m/s, rad]
 XI_HIGH = tuple(XI_RANGES[k][1] for k in XI_KEYS)
 XI_DIM = len(XI_KEYS) * N_OTHERS  # 64
 
+Step = tuple[Tensor, Tensor] | None  # a Linear layer's (weight, bias), or None for an exact GELU
+
 
 class MLP(nn.Sequential):
     """Linear and GELU layers, run as one loop of ``F.linear`` and ``F.gelu`` on each layer's own
@@ -88,6 +91,21 @@ class MLP(nn.Sequential):
         for layer in self:
             x = F.linear(x, layer.weight, layer.bias) if isinstance(layer, nn.Linear) else F.gelu(x)
         return x
+
+    def steps(self) -> tuple[Step, ...]:
+        """Its layers for :func:`run_steps`: each Linear's (weight, bias), None for each GELU. The
+        parameters themselves, not copies: what changes them in place (an optimiser,
+        ``load_state_dict``) is seen; a layer or parameter replaced is not, so ask again then."""
+        return tuple((layer.weight, layer.bias) if isinstance(layer, nn.Linear) else None for layer in self)
+
+
+def run_steps(x: Tensor, steps: tuple[Step, ...]) -> Tensor:
+    """:meth:`MLP.forward` on its :meth:`MLP.steps`: the same ``F.linear`` and ``F.gelu`` calls,
+    so the same numbers bit for bit, without reading each layer's parameters through
+    ``nn.Module.__getattr__`` (about 30 look-ups a decision; the online decision's fast path)."""
+    for step in steps:
+        x = F.gelu(x) if step is None else F.linear(x, step[0], step[1])
+    return x
 
 
 def mlp(in_dim: int, out_dim: int, hidden_layers: int, hidden_units: int) -> MLP:
@@ -197,6 +215,21 @@ class SquashedGaussianPolicy(nn.Module):
         output; the adversary's ``mean_action`` reshapes its own)."""
         return self.squash(self.distribution_of_input(x)[0])
 
+    def mean_action_function(self) -> Callable[[Tensor], Tensor]:
+        """:meth:`mean_action_of_input` as a function of this network's parameters fetched now
+        (:meth:`MLP.steps`): the same torch operations, so the same numbers bit for bit, without a
+        module call or attribute look-up per layer, nor the log-std a mean action does not need.
+        For the online decision (one row a step, under ``torch.inference_mode``); fetch it again
+        after replacing the parameters or buffers (``.to`` another dtype or device)."""
+        steps, encoder, dim, low = self.net.steps(), self.encoder, self.dim, self.low
+        half_range = 0.5 * (self.high - self.low)  # squash's factor, the same float32 each call
+
+        def mean_action(x: Tensor) -> Tensor:
+            out = run_steps(x if encoder is None else encoder(x), steps)
+            return low + (torch.tanh(out[..., :dim]) + 1.0) * half_range
+
+        return mean_action
+
     def sample(self, states: Tensor, generator: torch.Generator | None = None) -> Tensor:
         """A reparameterised draw squash(mean + std·ε), ε ~ N(0, I): differentiable in θ."""
         mean, log_std = self.distribution(states)
@@ -252,6 +285,16 @@ class ValueNet(nn.Module):
     def value_of_input(self, x: Tensor) -> Tensor:
         """:meth:`forward` of states already through :func:`network_input` (in this network's dtype)."""
         return torch.relu(self.net(x if self.encoder is None else self.encoder(x))).squeeze(-1)
+
+    def value_function(self) -> Callable[[Tensor], Tensor]:
+        """:meth:`value_of_input` as a function of this network's parameters fetched now: the same
+        numbers bit for bit, for the online decision (as :meth:`SquashedGaussianPolicy.mean_action_function`)."""
+        steps, encoder = self.net.steps(), self.encoder
+
+        def value(x: Tensor) -> Tensor:
+            return torch.relu(run_steps(x if encoder is None else encoder(x), steps)).squeeze(-1)
+
+        return value
 
 
 class Networks(NamedTuple):
