@@ -284,12 +284,7 @@ class Courtesy:
         kept = _apply(now, set(self.held_cyclists), cyclists.ids, hold, release)
         t = session.time_s
         self.held_cyclists = {vid: self.held_cyclists.get(vid, t) for vid in kept}
-        removals = []
-        for vid, since in list(self.held_cyclists.items()):
-            if t - since >= CYCLIST_STANDOFF_S - 1e-9:
-                removals.append(Removal(t, vid, t - since, session.vehicle_lane(vid)))
-                session.remove(vid)
-                del self.held_cyclists[vid]
+        removals = _go_round(session, self.held_cyclists, CYCLIST_STANDOFF_S, session.vehicle_lane)
         return removals + self._go_round_in_front(session, pedestrians, ego)
 
     def _go_round_in_front(self, session: SumoSession, pedestrians: Movers,
@@ -305,14 +300,23 @@ class Courtesy:
                 radii = np.full(len(held.ids), PEDESTRIAN_RADIUS_M)
                 front = {str(p) for p in held.ids[in_front(x, y, heading, length, width, held.x, held.y, radii)]}
         self.held_in_front = {pid: self.held_in_front.get(pid, t) for pid in front}
-        removals = []
-        for pid, since in list(self.held_in_front.items()):
-            if t - since >= PEDESTRIAN_STANDOFF_S - 1e-9:
-                removals.append(Removal(t, pid, t - since, session.person_lane(pid)))
-                session.remove(pid)
-                del self.held_in_front[pid]
-                self.held_pedestrians.discard(pid)
+        removals = _go_round(session, self.held_in_front, PEDESTRIAN_STANDOFF_S, session.person_lane)
+        self.held_pedestrians -= {r.participant for r in removals}
         return removals
+
+
+def _go_round(session: SumoSession, held_since: dict[str, float], standoff_s: float,
+              lane_of: Callable[[str], str]) -> list[Removal]:
+    """Takes out of ``session`` (and of ``held_since``: id -> held since [s, SUMO time]) those held
+    ``standoff_s`` or longer, each with the lane ``lane_of`` it stood on; returns them."""
+    t = session.time_s
+    removals = []
+    for pid, since in list(held_since.items()):
+        if t - since >= standoff_s - 1e-9:
+            removals.append(Removal(t, pid, t - since, lane_of(pid)))
+            session.remove(pid)
+            del held_since[pid]
+    return removals
 
 
 def following(ego: tuple[float, float, float, float, float, float], x: FloatArray, y: FloatArray,
