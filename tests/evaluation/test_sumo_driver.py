@@ -182,3 +182,17 @@ def test_sumo_driver_clears_the_junction_once_its_light_is_no_longer_green() -> 
         outcomes[mode] = json.loads(done.stdout.strip().splitlines()[-1])
     assert outcomes["off"][0] == "timeout", outcomes
     assert outcomes["on"][0] == "passed", outcomes
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("seed", "car"), [(1771952177, "veh52"), (1272930509, "veh43")])
+def test_a_car_two_rules_hold_for_the_ego_stays_held_when_one_lets_go(seed: int, car: str) -> None:
+    """b_two_lane's nominal left turn, runs of benchmarks/world_flow.py's base seed: SUMO's driver
+    clears the junction at the end of its green into the exit a right-turner, standing inside the
+    junction, merges into too. The letting out held the right-turner while the ego moved, the
+    courtesy while it stood, and each, letting go, released the other's hold: the right-turner
+    drove into the ego's side. Now a vehicle stands until every rule holding it has let go
+    (SumoSession.hold_vehicle); the two rules sharing one name behave as before."""
+    before = _patched_episode("b_two_lane-left", seed, "crossroads.sim.letting_out:HOLDER='courtesy'")
+    assert before[:2] == ["collision", f"hit vehicle {car}"], before
+    assert _patched_episode("b_two_lane-left", seed)[0] == "passed"

@@ -147,8 +147,13 @@ class _Recorder:
         self.calls: list[tuple[str, str]] = []
         self.time_s = 0.0
 
-    def set_speed(self, vid: str, speed: float) -> None:
-        self.calls.append(("hold" if speed == 0.0 else "release", vid))
+    def hold_vehicle(self, vid: str, holder: str) -> None:
+        assert holder == "courtesy"
+        self.calls.append(("hold", vid))
+
+    def release_vehicle(self, vid: str, holder: str) -> None:
+        assert holder == "courtesy"
+        self.calls.append(("release", vid))
 
     def vehicle_lane(self, vid: str) -> str:
         return ":C_20_0"

@@ -276,3 +276,27 @@ def test_forbidden_lane_changes_inside_the_junction_do_not_happen(tmp_path: Path
                           seed=5, duration_s=400)
     assert _lane_changes_inside_the_junction(net, routes, forbid=False, steps=3000) > 0
     assert _lane_changes_inside_the_junction(net, routes, forbid=True, steps=3000) == 0
+
+
+def test_a_vehicle_held_by_two_rules_stands_until_both_have_released_it(net_and_routes) -> None:
+    """Two of the world's rules holding one car (the courtesy for a standing ego, the letting out
+    of one caught inside the junction): one letting go must not release the other's hold."""
+    net, routes, _ = net_and_routes
+    with SumoSession().start(net, [routes], seed=1) as sim:
+        sim.step(40)
+        vid = next(v for v in sim.vehicle_ids if sim.vehicle_pose(v)[3] > 3.0)
+
+        def speed_after(steps: int) -> float:
+            sim.step(steps)
+            return sim.vehicle_pose(vid)[3]
+
+        sim.hold_vehicle(vid, "courtesy")
+        sim.hold_vehicle(vid, "letting_out")
+        assert speed_after(30) == 0.0
+        sim.release_vehicle(vid, "letting_out")
+        sim.release_vehicle(vid, "somebody else")  # holds nothing: changes nothing
+        assert sim.vehicle_holders(vid) == {"courtesy"}
+        assert speed_after(20) == 0.0
+        sim.release_vehicle(vid, "courtesy")
+        assert not sim.vehicle_holders(vid)
+        assert speed_after(20) > 0.5

@@ -87,6 +87,7 @@ NEAR_CAR_M = 40.0  # [m] no car farther from the ego's centre is checked (14 m/s
 _SAMPLES = np.linspace(0.0, 1.0, 8)  # points along the way ahead checked against the footprint
 NEAR_M = 8.0  # [m] nobody farther from the ego's centre is checked
 SIDE_FRONT_EXCLUDED_M = 0.5  # [m] a moving ego's front part where a pedestrian walking in is its collision
+HOLDER = "courtesy"  # this rule's name among those holding a vehicle (SumoSession.hold_vehicle)
 
 
 class Movers(NamedTuple):
@@ -267,10 +268,10 @@ class Courtesy:
         standing = ego[3] < EGO_STANDING_MPS
 
         def hold(vid: str) -> None:
-            session.set_speed(vid, 0.0)
+            session.hold_vehicle(vid, HOLDER)
 
         def release(vid: str) -> None:
-            session.set_speed(vid, -1.0)
+            session.release_vehicle(vid, HOLDER)
 
         # a moving ego: those held before, those following it and those about to drive into its side
         if not standing and watched is None:

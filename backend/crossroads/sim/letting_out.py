@@ -44,6 +44,7 @@ from crossroads.sim.sumo import GREEN_LINK_STATES, SumoSession
 
 LET_OUT_FOR_S = 20.0  # [s] how long after it was caught a standing vehicle inside the junction is let out
 MOVING_MPS = 0.5  # [m/s] a caught ego faster than this is let out however long it has been caught
+HOLDER = "letting_out"  # this rule's name among those holding a vehicle (SumoSession.hold_vehicle)
 COMFORT_DECEL_MPS2 = 3.0  # [m/s²] a driver waits only if it can stop before its line braking at this
 APPROACH_M = 60.0  # [m] drivers farther from their stop line are not looked at (14 m/s stops in 33 m)
 SAMPLE_M = 0.5  # [m] spacing of the points along a way checked against the other
@@ -165,12 +166,12 @@ class LettingOut:
                 if waits_for:
                     waiting[vid] = waits_for
         for vid in waiting.keys() - self.waiting.keys():
-            session.set_speed(vid, 0.0)
+            session.hold_vehicle(vid, HOLDER)
         gone = self.waiting.keys() - waiting.keys()
         if gone:
             alive = set(session.vehicle_ids)
             for vid in gone & alive:
-                session.set_speed(vid, -1.0)
+                session.release_vehicle(vid, HOLDER)
         self.waiting = waiting
 
     def _caught(self, session: SumoSession, vid: str) -> Caught:

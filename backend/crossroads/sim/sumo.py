@@ -284,6 +284,7 @@ class SumoSession:
         self._vehicles: dict[str, None] = {}  # alive, in departure order (dict keeps order)
         self._persons: dict[str, None] = {}
         self._static = _StaticTable()
+        self._vehicle_holders: dict[str, set[str]] = {}  # vehicle id -> who holds it (hold_vehicle)
         self._egos: dict[str, float] = {}  # ego id -> length [m]
         self._egos_inserted: set[str] = set()  # egos SUMO has put on the road (after their first step)
         self._egos_snapped: set[str] = set()  # egos mapped onto their route's lane centres (move_ego)
@@ -355,6 +356,7 @@ class SumoSession:
         self._vehicles.clear()
         self._persons.clear()
         self._static = _StaticTable()
+        self._vehicle_holders.clear()
         self._egos.clear()
         self._egos_inserted.clear()
         self._egos_snapped.clear()
@@ -429,6 +431,7 @@ class SumoSession:
 
     def _forget(self, pid: str, alive: dict[str, None]) -> None:
         alive.pop(pid, None)
+        self._vehicle_holders.pop(pid, None)
         self._static.forget(pid)
         self._egos.pop(pid, None)
         self._egos_inserted.discard(pid)
@@ -717,6 +720,35 @@ class SumoSession:
     def set_speed(self, vehicle_id: str, speed_mps: float) -> None:
         """Command a speed [m/s] (−1 gives control back to the car-following model)."""
         libsumo.vehicle.setSpeed(vehicle_id, speed_mps)
+
+    @_sumo_errors
+    def hold_vehicle(self, vehicle_id: str, holder: str) -> None:
+        """Stop a vehicle where it is (its speed 0, braking as SUMO lets it) on behalf of
+        ``holder`` (a rule of the world: ``"courtesy"``, ``"letting_out"``); it stays held until
+        every holder has released it (:meth:`release_vehicle`). Why shared: two rules commanding
+        one vehicle's speed each on their own undid each other's hold — one released a car the
+        other had just stopped for the standing ego, and it drove on into the ego's side
+        (b_two_lane left, seed 1771952177 of base 20261206)."""
+        holders = self._vehicle_holders.setdefault(vehicle_id, set())
+        if not holders:
+            libsumo.vehicle.setSpeed(vehicle_id, 0.0)
+        holders.add(holder)
+
+    @_sumo_errors
+    def release_vehicle(self, vehicle_id: str, holder: str) -> None:
+        """``holder`` no longer holds the vehicle; once no one does, SUMO's driver model takes its
+        speed back. Releasing a vehicle ``holder`` does not hold does nothing."""
+        holders = self._vehicle_holders.get(vehicle_id)
+        if holders is None or holder not in holders:
+            return
+        holders.discard(holder)
+        if not holders:
+            del self._vehicle_holders[vehicle_id]
+            libsumo.vehicle.setSpeed(vehicle_id, -1.0)
+
+    def vehicle_holders(self, vehicle_id: str) -> frozenset[str]:
+        """Who holds the vehicle now (:meth:`hold_vehicle`; empty: no one)."""
+        return frozenset(self._vehicle_holders.get(vehicle_id, ()))
 
     @_sumo_errors
     def speed_without_traci(self, vehicle_id: str) -> float:
