@@ -13,6 +13,7 @@ import pytest
 
 from crossroads.intersections import catalogue
 from crossroads.sim.courtesy import (
+    CYCLIST_NEAR_M,
     CYCLIST_STANDOFF_S,
     Cars,
     Courtesy,
@@ -223,6 +224,26 @@ def test_a_pedestrian_about_to_walk_into_a_moving_egos_side_stops() -> None:
     assert session.calls == []
 
 
+def test_a_cyclist_following_a_moving_ego_into_its_rear_quarter_stops() -> None:
+    """f_irregular_wide's right turn, seed 1120857481 (the rule controller, base seed 20261206): a
+    cyclist behind the ego, heading 30° off its way, rides into its rear quarter as it sets off."""
+    rule, session = Courtesy(), _Recorder()
+    behind = Movers(np.array(["b"]), np.array([-4.1]), np.array([-2.1]), np.array([np.radians(30.0)]),
+                    np.array([1.4]))
+    rule.watch_sides(session, NOBODY, (0.0, 0.0, 0.0, 0.7, 4.8, 2.0), behind)  # type: ignore[arg-type]
+    assert session.calls == [("hold", "b")] and set(rule.held_cyclists) == {"b"}
+
+
+def test_a_cyclist_seen_beyond_its_braking_reach_stops_short_of_the_standing_ego() -> None:
+    """f_irregular_wide's right turn, seed 1114790774: a cyclist at 5.4 m/s making for the standing
+    ego from 11 m away must be held now; within 8 m of the ego's centre it could no longer stop."""
+    assert cyclist_reach(np.array(5.4)) + 2.4 < CYCLIST_NEAR_M
+    rule, session = Courtesy(), _Recorder()
+    far = Movers(np.array(["b"]), np.array([-11.0]), np.array([0.0]), np.array([0.0]), np.array([5.4]))
+    rule.update(session, NOBODY, far, (0.0, 0.0, 0.0, 0.0, 4.8, 2.0))  # type: ignore[arg-type]
+    assert session.calls == [("hold", "b")]
+
+
 def test_a_cyclist_held_too_long_goes_round_the_car() -> None:
     rule, session = Courtesy(), _Recorder()
     assert _update(rule, session, 0.0, cyclist=True) == []
@@ -411,3 +432,41 @@ def test_a_moving_ego_holds_the_cars_following_it_or_heading_for_its_side() -> N
     rule.update(session, NOBODY, NOBODY, ego, side)  # type: ignore[arg-type]
     assert rule.held_cars == {"s"}
     assert not Courtesy().may_act(3.0, crossing, ego)
+
+
+_ONE_RULE_EPISODE = """
+import importlib, json, sys
+import numpy as np
+from pathlib import Path
+for patch in sys.argv[3:]:
+    target, expression = patch.split("=", 1)
+    module, name = target.split(":")
+    setattr(importlib.import_module(module), name, eval(expression))
+from crossroads.evaluation.episode import run_episode
+from crossroads.idc.rule_based import RuleBasedController
+from crossroads.scenario.spec import load_scenario, to_world_config
+from crossroads.sim.world import World
+path, seed = Path(sys.argv[1]), int(sys.argv[2])
+with World(to_world_config(load_scenario(path), path.parent)) as world:
+    result = run_episode(world, RuleBasedController(), seed=seed)
+print(json.dumps([result.outcome, result.detail]))
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("seed", "cyclist"), [(1114790774, "bike23"), (1120857481, "bike24")])
+def test_cyclists_stop_short_of_the_rule_controllers_right_turn(seed: int, cyclist: str) -> None:
+    """f_irregular_wide's right turn with the rule controller, runs of benchmarks/world_flow.py's base
+    seed (module docstring): with cyclists looked at only within 8 m and none held for a moving ego's
+    side they rode into it; now they stop. Fresh processes, as ``crossroads run``."""
+    path = Path(__file__).resolve().parents[2] / "scenarios/nominal/f_irregular_wide-right.yaml"
+
+    def outcome(*patches: str) -> list:
+        done = subprocess.run([sys.executable, "-c", _ONE_RULE_EPISODE, str(path), str(seed), *patches],
+                              capture_output=True, text=True, timeout=300, check=True)
+        return json.loads(done.stdout.strip().splitlines()[-1])
+
+    before = outcome("crossroads.sim.courtesy:CYCLIST_NEAR_M=8.0",
+                     "crossroads.sim.courtesy:riding_into_side=lambda *a: np.zeros(len(a[5]), dtype=bool)")
+    assert before == ["collision", f"hit cyclist {cyclist}"], before
+    assert outcome()[0] == "passed"

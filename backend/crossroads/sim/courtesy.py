@@ -27,12 +27,18 @@ too (SUMO's driver, which then let itself go first, crept into one standing 0.26
 bumper: ``c_three_lane``'s left turn, seed 1416578486 of base seed 20261206, and the same run in
 five of the six paper cases).
 
-A moving ego: whoever it drives into is its collision, so it holds no one new, with two exceptions,
+A moving ego: whoever it drives into is its collision, so it holds no one new, with three exceptions,
 and whoever was held for it stays held, the ego moving or not, as long as its way still comes into
 the ego. The exceptions: a pedestrian about to walk into the side or rear of the moving ego (its
 footprint but the front :data:`SIDE_FRONT_EXCLUDED_M`) stops too, and so does a car about to drive
 into its side or rear or following it (:func:`following`: near, behind it, heading its way), as
-for any car ahead or crossing in front of it. Seen with SUMO's driver (base seed 20261206): on
+for any car ahead or crossing in front of it, and a cyclist following it about to ride into its
+side or rear (a cyclist it turns across, heading a right angle or more off its way, is its own
+collision). A cyclist is looked at within :data:`CYCLIST_NEAR_M` of the ego, beyond its reach:
+on ``f_irregular_wide``'s right turn (the rule controller, base seed 20261206) one at 5.4 m/s, seen
+only 8 m from the standing ego's centre, could no longer stop and rode into it (seed 1114790774),
+and one held behind the standing ego, let go for a step as the ego set off (its way, at the speed
+it had braked to, no longer came nearer), rode on into its rear quarter (seed 1120857481). Seen with SUMO's driver (base seed 20261206): on
 ``b_two_lane``'s left turn a right-turner merging behind it into the same exit drove up to 0.04 m
 from the ego's side as the ego braked, and the ego pulling away then swung into it (seed
 285310816); on ``e_irregular_oblique``'s left turn the cross street's first car, braking for the
@@ -85,7 +91,9 @@ CAR_SPARE_M = 0.2  # [m] kept between a held car's side and the ego, beyond half
 SWEEP_NEAR_M = 12.0  # [m] cars inside the junction farther from the ego are not followed along their lanes
 NEAR_CAR_M = 40.0  # [m] no car farther from the ego's centre is checked (14 m/s: 36 m reach)
 _SAMPLES = np.linspace(0.0, 1.0, 8)  # points along the way ahead checked against the footprint
-NEAR_M = 8.0  # [m] nobody farther from the ego's centre is checked
+NEAR_M = 8.0  # [m] no pedestrian farther from the ego's centre is checked
+CYCLIST_NEAR_M = 15.0  # [m] no cyclist farther from the ego's centre is checked: beyond a cyclist's
+# reach at 6 m/s plus half the car (within 8 m one at 5.4 m/s could no longer stop short of the ego)
 SIDE_FRONT_EXCLUDED_M = 0.5  # [m] a moving ego's front part where a pedestrian walking in is its collision
 HOLDER = "courtesy"  # this rule's name among those holding a vehicle (SumoSession.hold_vehicle)
 
@@ -161,6 +169,14 @@ def riding_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: floa
                        cyclist_reach(speed), CYCLIST_MARGIN_M)
 
 
+def riding_into_side(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
+                     x: FloatArray, y: FloatArray, heading: FloatArray, speed: FloatArray) -> np.ndarray:
+    """:func:`riding_into` a moving ego's sides or rear only, its front
+    :data:`SIDE_FRONT_EXCLUDED_M` left out (a cyclist there is in the ego's way, the ego's to stop for)."""
+    return moving_into(ego_x, ego_y, ego_heading, ego_length, ego_width, x, y, heading,
+                       cyclist_reach(speed), CYCLIST_MARGIN_M, front_m=ego_length / 2.0 - SIDE_FRONT_EXCLUDED_M)
+
+
 def sweeping_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
                   way: FloatArray, length: float, width: float, reach: float, *, start_m: float = 0.0,
                   cum: FloatArray | None = None) -> bool:
@@ -233,12 +249,14 @@ class Courtesy:
                                  or (ego is not None and bool(watched_while_moving(cars, ego))))
 
     def watch_sides(self, session: SumoSession, pedestrians: Movers,
-                    ego: tuple[float, float, float, float, float, float]) -> None:
+                    ego: tuple[float, float, float, float, float, float], cyclists: Movers | None = None) -> None:
         """:meth:`update` while the ego moves and no one is held (``may_act`` False): only
-        pedestrians about to walk into the ego's side or rear can be held."""
+        pedestrians and cyclists about to walk or ride into the ego's side or rear can be held."""
         if self.enabled:
             self.held_in_front = {}  # the ego moves
             self._hold_pedestrians(session, pedestrians, ego)
+            if cyclists is not None and len(cyclists.ids):
+                self._hold_cyclists(session, cyclists, ego)
 
     def _hold_pedestrians(self, session: SumoSession, pedestrians: Movers,
                           ego: tuple[float, float, float, float, float, float]) -> None:
@@ -281,12 +299,26 @@ class Courtesy:
         if car_ways:
             now |= _sweeping(cars, car_ways, ego, looked_at)
         self.held_cars = _apply(now, self.held_cars, cars.ids, hold, release)
-        now = _who(cyclists if standing else _only(cyclists, set(self.held_cyclists)), ego, riding_into)
-        kept = _apply(now, set(self.held_cyclists), cyclists.ids, hold, release)
-        t = session.time_s
-        self.held_cyclists = {vid: self.held_cyclists.get(vid, t) for vid in kept}
+        self._hold_cyclists(session, cyclists, ego)
         removals = _go_round(session, self.held_cyclists, CYCLIST_STANDOFF_S, session.vehicle_lane)
         return removals + self._go_round_in_front(session, pedestrians, ego)
+
+    def _hold_cyclists(self, session: SumoSession, cyclists: Movers,
+                       ego: tuple[float, float, float, float, float, float]) -> None:
+        """Hold and release cyclists: all riding into a standing ego; for a moving one, those
+        following it (:func:`following`) about to ride into its sides or rear, and those held
+        before whose way still comes into it."""
+        if ego[3] < EGO_STANDING_MPS:
+            now = _who(cyclists, ego, riding_into, CYCLIST_NEAR_M)
+        else:  # held before, or following the ego into its sides or rear (one it turns across is its own)
+            behind = _only(cyclists, {str(i) for i in cyclists.ids[following(ego, cyclists.x, cyclists.y,
+                                                                                 cyclists.heading)]})
+            now = (_who(behind, ego, riding_into_side, CYCLIST_NEAR_M)
+                   | _who(_only(cyclists, set(self.held_cyclists)), ego, riding_into, CYCLIST_NEAR_M))
+        kept = _apply(now, set(self.held_cyclists), cyclists.ids,
+                      lambda vid: session.hold_vehicle(vid, HOLDER), lambda vid: session.release_vehicle(vid, HOLDER))
+        t = session.time_s
+        self.held_cyclists = {vid: self.held_cyclists.get(vid, t) for vid in kept}
 
     def _go_round_in_front(self, session: SumoSession, pedestrians: Movers,
                            ego: tuple[float, float, float, float, float, float]) -> list[Removal]:

@@ -37,6 +37,7 @@ from crossroads.sim.config import WorldConfig
 from crossroads.sim.clearing import JunctionClearing, Pose, caught, remaining_way, session_movement_links
 from crossroads.sim.courtesy import EGO_STANDING_MPS, Cars, Courtesy, Movers, watched_while_moving
 from crossroads.sim.courtesy import NEAR_CAR_M as COURTESY_NEAR_CAR_M
+from crossroads.sim.courtesy import CYCLIST_NEAR_M as COURTESY_CYCLIST_NEAR_M
 from crossroads.sim.courtesy import NEAR_M as COURTESY_NEAR_M
 from crossroads.sim.courtesy import SWEEP_NEAR_M
 from crossroads.sim.ego import ego_step
@@ -453,8 +454,8 @@ class World:
 
     def _let_pedestrians_stop(self, snap: Snapshot, around: _Around) -> bool:
         """Pedestrians, cyclists and drivers (not the abnormal ones) about to move into the
-        standing ego stop; pedestrians and drivers about to move into a moving ego's side and
-        drivers following it too (sim/courtesy.py);
+        standing ego stop; pedestrians, cyclists and drivers about to move into a moving ego's side
+        and drivers following it too (sim/courtesy.py);
         a cyclist taken out after a standoff is an episode event. Whether anyone was taken out."""
         if not self._courtesy.enabled:
             return False
@@ -474,9 +475,12 @@ class World:
         # a moving ego: the cars the courtesy watches, worked out once for both calls below
         watched = watched_while_moving(cars, ego) if ego[3] >= EGO_STANDING_MPS else None
         if not watched and not self._courtesy.may_act(ego[3]):  # moving, no one held or watched: its sides
-            near = is_pedestrian & (around.distance < COURTESY_NEAR_M)
+            is_cyclist = snap.kind_code == _CYCLIST
+            near = ((is_pedestrian & (around.distance < COURTESY_NEAR_M))
+                    | (is_cyclist & (around.distance < COURTESY_CYCLIST_NEAR_M)))
             if near.any():  # (most steps: no one)
-                self._courtesy.watch_sides(self.session, movers(near), ego)
+                self._courtesy.watch_sides(self.session, movers(is_pedestrian & near), ego,
+                                           movers(is_cyclist & near))
             return False
         removals = self._courtesy.update(self.session, movers(is_pedestrian), movers(snap.kind_code == _CYCLIST),
                                          ego, cars, self._ways_through_junction(snap, rows, around),
