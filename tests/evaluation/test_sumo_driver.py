@@ -147,7 +147,8 @@ def test_the_cross_street_waits_for_a_caught_ego_that_sets_off_after_the_let_out
     the junction; the let-out's bound let the cross street go just as it set off, and the cross
     street's first car drove into its side, until a caught vehicle that moves was let out however
     long it had been caught (sim/letting_out.py)."""
-    before = _patched_episode("e_irregular_oblique-left", 1848100215, "crossroads.sim.letting_out:MOVING_MPS=math.inf")
+    before = _patched_episode("e_irregular_oblique-left", 1848100215, "crossroads.sim.letting_out:MOVING_MPS=math.inf",
+                              "crossroads.sim.world:SPEED_MODE_CLEARING_THROUGH=23")  # as SUMO's driver cleared then
     assert before[:2] == ["collision", "hit vehicle veh11"], before
     assert _patched_episode("e_irregular_oblique-left", 1848100215)[0] == "passed"
 
@@ -196,3 +197,16 @@ def test_a_car_two_rules_hold_for_the_ego_stays_held_when_one_lets_go(seed: int,
     before = _patched_episode("b_two_lane-left", seed, "crossroads.sim.letting_out:HOLDER='courtesy'")
     assert before[:2] == ["collision", f"hit vehicle {car}"], before
     assert _patched_episode("b_two_lane-left", seed)[0] == "passed"
+
+
+@pytest.mark.slow
+def test_sumos_driver_standing_caught_with_no_one_in_its_way_clears_past_those_inside() -> None:
+    """e_irregular_oblique's nominal left turn, run 1696336797 of benchmarks/world_flow.py's base
+    seed: SUMO's driver stands at its left turn's waiting point through its whole second green (no
+    gap it accepts in three oncoming lanes) and then, clearing the junction in SUMO's speed mode that
+    still yields to the foes it counts inside the junction, stood on with no one in its way to the
+    timeout. Once it has stood 5 s so it clears past them too (SumoDriver.clear_through_after_s)."""
+    before = _patched_episode("e_irregular_oblique-left", 1696336797,
+                              "crossroads.sim.world:SPEED_MODE_CLEARING_THROUGH=23")  # never past them
+    assert before[0] == "timeout", before
+    assert _patched_episode("e_irregular_oblique-left", 1696336797)[0] == "passed"

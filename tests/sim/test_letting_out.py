@@ -90,8 +90,9 @@ def test_sumos_driver_caught_at_its_waiting_point_gets_out_when_the_cross_street
     longest_s = 0.0
     waited_for_ego = False
     with World(cfg) as world:
-        policy = SumoDriverPolicy()
-        world.reset(CAUGHT_SEED, sumo_driver=policy.driver)
+        # SUMO's driver never clearing past those inside the junction: the letting out alone gets it out
+        driver = replace(SumoDriverPolicy().driver, clear_through_after_s=None)
+        world.reset(CAUGHT_SEED, sumo_driver=driver)
         outcome = None
         while outcome is None:
             _, outcome = world.step(None)

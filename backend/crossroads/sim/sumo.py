@@ -87,6 +87,14 @@ class SumoDriver:
     # green and then to the oncoming stream again, through whole cycles. On the nominal left turn
     # of c_three_lane (the first 60 runs of base seed 20261206) 9 timeouts became 3, no collision.
     clear_junction: bool = True
+    # [s] ... and once it has stood that long clearing it with no one in its way (the look-ahead not
+    # braking), past the foes SUMO counts inside the junction too (speed mode 55 instead of 23):
+    # otherwise it stood at e_irregular_oblique's waiting point after its green, no one in its
+    # way, to the timeout (runs 1696336797 and 780574059 of base seed 20261206; 200 runs: 193 ->
+    # 199 passes, no collision). At once rather than after standing, it drove into the oncoming
+    # cars still inside the junction as its yellow ended (157 of 200, 41 collisions). The cross
+    # street waits at its line meanwhile (sim/letting_out.py). None: never.
+    clear_through_after_s: float | None = 5.0
 
 # SUMO speed-mode bits (sumo.dlr.de/docs/TraCI/Change_Vehicle_State.html#speed_mode_0xb3).
 SPEED_MODE_DEFAULT = 31  # all checks on

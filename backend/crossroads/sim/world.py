@@ -58,7 +58,13 @@ from crossroads.sim.signals import (
 )
 from crossroads.sim.snapshot import KIND_CODE, Snapshot
 from crossroads.sim.start import place_ego
-from crossroads.sim.sumo import SPEED_MODE_CLEARING, SPEED_MODE_DEFAULT, SumoDriver, SumoSession
+from crossroads.sim.sumo import (
+    SPEED_MODE_CLEARING,
+    SPEED_MODE_CLEARING_THROUGH,
+    SPEED_MODE_DEFAULT,
+    SumoDriver,
+    SumoSession,
+)
 from crossroads.sim.traffic import DemandPlan, build_plan, write_plan
 
 EGO_ID = "ego"
@@ -252,7 +258,8 @@ class World:
         if sumo_driver is not None:
             self.session.release_ego(EGO_ID)
         self.time_s = 0.0
-        self._sumo_driver_clearing = False  # SUMO's driver clearing the junction (SumoDriver.clear_junction)
+        self._sumo_driver_mode = SPEED_MODE_DEFAULT  # SUMO's driver's speed mode (SumoDriver.clear_junction)
+        self._sumo_driver_standing_since: float | None = None  # ... standing while clearing, nobody in its way
         self._front_stopped: tuple[str, float] | None = None  # (id, since [s])
         self._stop_line_crossed_s: float | None = None
         self._abnormal_ids = self.abnormal.update(self.session)
@@ -414,11 +421,25 @@ class World:
 
     def _let_sumo_driver_clear(self, light: str) -> None:
         """SUMO's driver, inside the junction when its light is no longer green, drives on
-        regardless of the junction's right of way (``SumoDriver.clear_junction``)."""
+        regardless of the junction's right of way (``SumoDriver.clear_junction``), and past the
+        foes inside the junction too once it has stood ``SumoDriver.clear_through_after_s`` so
+        with no one in its way."""
         clearing = light != "green" and self.session.vehicle_lane(EGO_ID).startswith(":")
-        if clearing != self._sumo_driver_clearing:
-            self.session.set_speed_mode(EGO_ID, SPEED_MODE_CLEARING if clearing else SPEED_MODE_DEFAULT)
-            self._sumo_driver_clearing = clearing
+        mode = SPEED_MODE_CLEARING if clearing else SPEED_MODE_DEFAULT
+        after = self.sumo_driver.clear_through_after_s if self.sumo_driver is not None else None
+        if clearing and after is not None:
+            standing = float(self.ego[2]) < EGO_STANDING_MPS
+            if not standing or self._look_ahead.braking:
+                self._sumo_driver_standing_since = None
+            elif self._sumo_driver_standing_since is None:
+                self._sumo_driver_standing_since = self.time_s
+            elif self.time_s - self._sumo_driver_standing_since >= after - 1e-9:
+                mode = SPEED_MODE_CLEARING_THROUGH
+        else:
+            self._sumo_driver_standing_since = None
+        if mode != self._sumo_driver_mode:
+            self.session.set_speed_mode(EGO_ID, mode)
+            self._sumo_driver_mode = mode
 
     def _look_ahead_for_sumo_driver(self, snap: Snapshot) -> None:
         """SUMO's driver brakes for a pedestrian, cyclist or vehicle in the ego's way
