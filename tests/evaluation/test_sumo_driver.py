@@ -16,6 +16,7 @@ from crossroads.intersections import catalogue
 from crossroads.sim.config import WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC, TrafficDemand
 from crossroads.sim.world import EGO_ID, World
+from support import patched_episode
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -112,32 +113,9 @@ def test_sumo_driver_brakes_for_whoever_is_in_its_way_ahead(scenario: str, seed:
     assert outcomes["on"][0] == "passed", outcomes
 
 
-# one episode of SUMO's driver in a fresh process, with module constants of the world patched:
-# argv: scenario, seed, then "module:NAME=python expression" patches; prints outcome, detail, events
-_ONE_EPISODE_PATCHED = """
-import importlib, json, math, sys
-import numpy as np
-from pathlib import Path
-for patch in sys.argv[3:]:
-    target, expression = patch.split("=", 1)
-    module, name = target.split(":")
-    setattr(importlib.import_module(module), name, eval(expression))
-from crossroads.evaluation.episode import run_episode
-from crossroads.evaluation.sumo_driver import SumoDriverPolicy
-from crossroads.scenario.spec import load_scenario, to_world_config
-from crossroads.sim.world import World
-path, seed = Path(sys.argv[1]), int(sys.argv[2])
-with World(to_world_config(load_scenario(path), path.parent)) as world:
-    result = run_episode(world, SumoDriverPolicy(), seed=seed)
-print(json.dumps([result.outcome, result.detail, [e["event"] for e in result.events]]))
-"""
-
-
 def _patched_episode(scenario: str, seed: int, *patches: str) -> list:
-    done = subprocess.run([sys.executable, "-c", _ONE_EPISODE_PATCHED,
-                           str(REPO / f"scenarios/nominal/{scenario}.yaml"), str(seed), *patches],
-                          capture_output=True, text=True, timeout=300, check=True)
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    """SUMO's driver on one nominal scenario in a fresh process, with ``patches`` (support.py)."""
+    return patched_episode(scenario, "sumo", seed, *patches)
 
 
 @pytest.mark.slow

@@ -285,12 +285,6 @@ class Courtesy:
         # a moving ego holds no new car or cyclist; whoever it held stays until its way is clear
         standing = ego[3] < EGO_STANDING_MPS
 
-        def hold(vid: str) -> None:
-            session.hold_vehicle(vid, HOLDER)
-
-        def release(vid: str) -> None:
-            session.release_vehicle(vid, HOLDER)
-
         # a moving ego: those held before, those following it and those about to drive into its side
         if not standing and watched is None:
             watched = watched_while_moving(cars, ego)
@@ -298,7 +292,7 @@ class Courtesy:
         now = _who(cars if looked_at is None else _only(cars, looked_at), ego, driving_into, NEAR_CAR_M)
         if car_ways:
             now |= _sweeping(cars, car_ways, ego, looked_at)
-        self.held_cars = _apply(now, self.held_cars, cars.ids, hold, release)
+        self.held_cars = _apply_holds(session, now, self.held_cars, cars.ids)
         self._hold_cyclists(session, cyclists, ego)
         removals = _go_round(session, self.held_cyclists, CYCLIST_STANDOFF_S, session.vehicle_lane)
         return removals + self._go_round_in_front(session, pedestrians, ego)
@@ -315,8 +309,7 @@ class Courtesy:
                                                                                  cyclists.heading)]})
             now = (_who(behind, ego, riding_into_side, CYCLIST_NEAR_M)
                    | _who(_only(cyclists, set(self.held_cyclists)), ego, riding_into, CYCLIST_NEAR_M))
-        kept = _apply(now, set(self.held_cyclists), cyclists.ids,
-                      lambda vid: session.hold_vehicle(vid, HOLDER), lambda vid: session.release_vehicle(vid, HOLDER))
+        kept = _apply_holds(session, now, set(self.held_cyclists), cyclists.ids)
         t = session.time_s
         self.held_cyclists = {vid: self.held_cyclists.get(vid, t) for vid in kept}
 
@@ -421,6 +414,12 @@ def _only(movers: MoversT, ids: set[str]) -> MoversT:
         return type(movers)(*(np.asarray(c)[:0] for c in movers))
     rows = np.isin(movers.ids.astype(str), list(ids)).nonzero()[0]
     return type(movers)(*(np.asarray(c)[rows] for c in movers))
+
+
+def _apply_holds(session: SumoSession, now: set[str], held: set[str], present_ids: np.ndarray) -> set[str]:
+    """:func:`_apply` to vehicles, held and released in ``session`` as this rule (:data:`HOLDER`)."""
+    return _apply(now, held, present_ids, lambda vid: session.hold_vehicle(vid, HOLDER),
+                  lambda vid: session.release_vehicle(vid, HOLDER))
 
 
 def _apply(now: set[str], held: set[str], present_ids: np.ndarray,

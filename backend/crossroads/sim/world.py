@@ -486,7 +486,7 @@ class World:
             rows = which.nonzero()[0]
             return Movers(snap.ids[rows], snap.x[rows], snap.y[rows], snap.heading[rows], snap.speed[rows])
 
-        is_pedestrian = snap.kind_code == _PEDESTRIAN
+        is_pedestrian, is_cyclist = snap.kind_code == _PEDESTRIAN, snap.kind_code == _CYCLIST
         drivers = (snap.kind_code == _VEHICLE) & (around.distance < COURTESY_NEAR_CAR_M)
         if self._abnormal_ids:
             drivers &= ~np.isin(snap.ids, list(self._abnormal_ids))
@@ -496,14 +496,13 @@ class World:
         # a moving ego: the cars the courtesy watches, worked out once for both calls below
         watched = watched_while_moving(cars, ego) if ego[3] >= EGO_STANDING_MPS else None
         if not watched and not self._courtesy.may_act(ego[3]):  # moving, no one held or watched: its sides
-            is_cyclist = snap.kind_code == _CYCLIST
             near = ((is_pedestrian & (around.distance < COURTESY_NEAR_M))
                     | (is_cyclist & (around.distance < COURTESY_CYCLIST_NEAR_M)))
             if near.any():  # (most steps: no one)
                 self._courtesy.watch_sides(self.session, movers(is_pedestrian & near), ego,
                                            movers(is_cyclist & near))
             return False
-        removals = self._courtesy.update(self.session, movers(is_pedestrian), movers(snap.kind_code == _CYCLIST),
+        removals = self._courtesy.update(self.session, movers(is_pedestrian), movers(is_cyclist),
                                          ego, cars, self._ways_through_junction(snap, rows, around),
                                          watched=watched)
         self.events.extend(r.to_event(self.time_s) for r in removals)
