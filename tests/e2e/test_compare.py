@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from playwright.sync_api import TimeoutError as PlaywrightTimeout
 
 from e2e.test_studio import _open
 
@@ -75,9 +76,9 @@ def test_compare_two_chosen_batches_and_their_reports(studio_url: str, browser: 
     assert page.request.get(studio_url + page.get_attribute("#report-csv", "href")).status == 200
     page.wait_for_selector("#episodes tbody tr")
     seeds = lambda: [int(t) for t in page.locator("#episodes tbody tr td:nth-child(2)").all_inner_texts()]  # noqa: E731
-    page.click("#episodes th[data-sort=seed]")
+    sort_by_seed(page, "ascending")
     assert seeds() == sorted(seeds())
-    page.click("#episodes th[data-sort=seed]")
+    sort_by_seed(page, "descending")
     assert seeds() == sorted(seeds(), reverse=True) and len(seeds()) == 3
     assert page.get_attribute("#episodes th[data-sort=seed]", "aria-sort") == "descending"
     first_seed = seeds()[0]
@@ -115,3 +116,19 @@ def test_theme_and_layout(studio_url: str, browser: Any, artifacts: Path, scheme
     assert side_by_side == (width > 900), (editor, preview)
     page.screenshot(path=str(artifacts / f"32-{scheme}-{width}.png"))
     page.close()
+
+
+def sort_by_seed(page: Any, direction: str) -> None:
+    """Click the seed column's title until the table says it is sorted ``direction``: a click that
+    lands on a table the page is just replacing (the batch's episodes arriving) is lost, and the
+    sorting is then checked on the table that stays."""
+    header = "#episodes th[data-sort=seed]"
+    for _ in range(3):
+        page.click(header)
+        try:
+            page.wait_for_function(
+                f"document.querySelector('{header}')?.getAttribute('aria-sort') === '{direction}'", timeout=2000)
+            return
+        except PlaywrightTimeout:
+            continue
+    raise AssertionError(f"the seed column never sorted {direction}")
