@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
@@ -49,10 +52,6 @@ def patched_episode(scenario: str, policy: str, seed: int, *patches: str) -> lis
     """[outcome, detail, event names] of one episode of ``scenarios/nominal/{scenario}.yaml`` with
     ``policy`` (``sumo``, ``rule``, ...) and ``seed`` in a fresh process, after ``patches``
     ("module:NAME=python expression", evaluated with ``math`` and ``np`` at hand)."""
-    import json
-    import subprocess
-    import sys
-
     done = subprocess.run([sys.executable, "-c", _PATCHED_EPISODE,
                            str(REPO_ROOT / f"scenarios/nominal/{scenario}.yaml"), policy, str(seed), *patches],
                           capture_output=True, text=True, timeout=300, check=True)
