@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from crossroads.constants import (ACCEL_MAX, ACCEL_MIN, DT_S, EGO_LENGTH_M, JERK_MAX, STEER_MAX, STEER_RATE_MAX,
+from crossroads.constants import (ACCEL_MAX, ACCEL_MIN, DT_S, EGO_LENGTH_M, EGO_WIDTH_M, JERK_MAX, STEER_MAX, STEER_RATE_MAX,
                                  STOP_LINE_GAP_M)
-from crossroads.geometry import wrap_angle
+from crossroads.geometry import footprint_points, outside_box, wrap_angle
 from crossroads.idc import rule_based as R
 from crossroads.idc.lights import choose_speed_mode
 from crossroads.intersections import catalogue
@@ -167,3 +167,31 @@ def test_the_body_sweep_stops_for_a_cyclist_standing_beside_the_inner_side_of_a_
     far = _seen((-0.5, -1.0 - 1.0 - 0.325, 0.0, 0.0, 1.6, 0.65))  # 1 m off: the turn's sweep does not reach it
     assert R.body_sweep_conflict(0.0, 0.0, 0.0, -0.35, far) is None
     assert R.body_sweep_conflict(0.0, 0.0, 0.0, -0.35, _seen()) is None
+
+
+def _plain_body_sweep_conflict(x, y, heading, steer, seen):
+    """body_sweep_conflict with every participant within SWEEP_NEAR_M checked at every placement."""
+    near = seen[np.hypot(seen[:, 0] - x, seen[:, 1] - y) < R.SWEEP_NEAR_M]
+    if len(near) == 0:
+        return None
+    px, py = footprint_points(near[:, 0], near[:, 1], near[:, 3], near[:, 4], near[:, 5])
+    cx, cy, h = np.array([(x, y, heading)] + [R.arc_pose(x, y, heading, steer, a) for a in R.SWEEP_AHEAD_M]).T
+    gap = outside_box(px[:, :, None], py[:, :, None], cx, cy, h, EGO_LENGTH_M, EGO_WIDTH_M).min(axis=1)
+    hit = ((gap[:, 1:] < R.SWEEP_MARGIN_M) & (gap[:, 1:] < gap[:, :1] - R.CLOSING_M)).any(axis=0)
+    return R.SWEEP_AHEAD_M[int(hit.argmax())] if hit.any() else None
+
+
+def test_body_sweep_conflict_answers_as_the_plain_formulation() -> None:
+    rng = np.random.default_rng(20261207)
+    found = []
+    for _ in range(1500):
+        n = int(rng.integers(0, 8))
+        x, y, heading = float(rng.uniform(-30, 30)), float(rng.uniform(-30, 30)), float(rng.uniform(-math.pi, math.pi))
+        steer = float(rng.uniform(-STEER_MAX, STEER_MAX))
+        seen = np.column_stack([x + rng.uniform(-11, 11, n), y + rng.uniform(-11, 11, n), rng.uniform(0, 10, n),
+                                rng.uniform(-math.pi, math.pi, n), rng.uniform(0.4, 12.0, n), rng.uniform(0.4, 2.5, n)])
+        answer = R.body_sweep_conflict(x, y, heading, steer, seen)
+        assert answer == _plain_body_sweep_conflict(x, y, heading, steer, seen)
+        found.append(answer)
+    assert sum(a is not None for a in found) > 100  # conflicts drawn, at several placements
+    assert len({a for a in found if a is not None}) >= 3

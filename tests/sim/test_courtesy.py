@@ -4,6 +4,7 @@ standoff, and the rule in SUMO."""
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -13,22 +14,27 @@ import pytest
 
 from crossroads.intersections import catalogue
 from crossroads.sim.courtesy import (
+    CAR_SPARE_M,
     CYCLIST_NEAR_M,
     CYCLIST_STANDOFF_S,
     Cars,
     Courtesy,
+    LOOKAHEAD_MIN_M,
     PEDESTRIAN_STANDOFF_S,
+    SIDE_FRONT_EXCLUDED_M,
     Movers,
     car_reach,
     cyclist_reach,
     driving_into,
+    driving_into_side,
     following,
+    moving_into,
     riding_into,
     sweeping_into,
     walking_into,
 )
-from crossroads.geometry import arc_lengths, placed_along
-from crossroads.sim.look_ahead import WayAhead
+from crossroads.geometry import arc_lengths, footprint_points, placed_along
+from crossroads.sim.look_ahead import WayAhead, comes_nearer
 from crossroads.sim.sumo import SumoSession
 from crossroads.sim.traffic import VTYPES_XML
 from support import patched_episode
@@ -448,3 +454,92 @@ def test_cyclists_stop_short_of_the_rule_controllers_right_turn(seed: int, cycli
                      "crossroads.sim.courtesy:riding_into_side=lambda *a: np.zeros(len(a[5]), dtype=bool)")
     assert before[:2] == ["collision", f"hit cyclist {cyclist}"], before
     assert outcome()[0] == "passed"
+
+
+# --- the fast paths answer as the plain array formulation ---------------------------------------
+
+def _plain_moving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
+                       x: np.ndarray, y: np.ndarray, heading: np.ndarray, reach: np.ndarray,
+                       margin_m: float | np.ndarray, front_m: float | None = None) -> np.ndarray:
+    """``moving_into`` as arrays of (movers, samples), every mover's every sample computed."""
+    reach = np.maximum(np.asarray(reach, dtype=float), LOOKAHEAD_MIN_M)
+    c, s = math.cos(ego_heading), math.sin(ego_heading)
+    margin = np.broadcast_to(np.asarray(margin_m, dtype=float), reach.shape)[:, None]
+    half_l, half_w = ego_length / 2.0 + margin, ego_width / 2.0 + margin
+    samples = np.linspace(0.0, 1.0, 8)
+    dx = (x[:, None] + np.cos(heading)[:, None] * reach[:, None] * samples) - ego_x
+    dy = (y[:, None] + np.sin(heading)[:, None] * reach[:, None] * samples) - ego_y
+    along, across = dx * c + dy * s, -dx * s + dy * c
+    ahead = half_l if front_m is None else np.minimum(half_l, front_m)
+    inside = (along >= -half_l) & (along <= ahead) & (np.abs(across) <= half_w)
+    return comes_nearer(inside, np.maximum(np.abs(along) - half_l, np.abs(across) - half_w))
+
+
+def _plain_sweeping_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
+                         way: np.ndarray, length: float, width: float, reach: float, start_m: float) -> bool:
+    """``sweeping_into`` with every placement computed, no car skipped as far."""
+    cum = arc_lengths(way)
+    s = start_m + np.linspace(0.0, max(min(max(reach, LOOKAHEAD_MIN_M), float(cum[-1]) - start_m), 0.0), 8)
+    cx, cy, headings = placed_along(way, cum, s, length)
+    px, py = footprint_points(cx, cy, headings, np.full(len(s), length), np.full(len(s), width))
+    c, si = math.cos(ego_heading), math.sin(ego_heading)
+    dx, dy = px - ego_x, py - ego_y
+    along, across = dx * c + dy * si, -dx * si + dy * c
+    depth = np.maximum(np.abs(along) - (0.5 * ego_length + CAR_SPARE_M),
+                       np.abs(across) - (0.5 * ego_width + CAR_SPARE_M)).min(axis=1)
+    return bool(comes_nearer(depth <= 0.0, depth))
+
+
+@pytest.mark.parametrize("front_m", [None, 1.9])
+def test_moving_into_answers_as_the_plain_formulation(front_m: float | None) -> None:
+    rng = np.random.default_rng(20261207)
+    hits = 0
+    for _ in range(400):
+        n = int(rng.integers(1, 12))
+        ego = (float(rng.uniform(-50, 50)), float(rng.uniform(-50, 50)), float(rng.uniform(-math.pi, math.pi)),
+               float(rng.uniform(3.5, 5.5)), float(rng.uniform(1.6, 2.2)))
+        x, y = ego[0] + rng.uniform(-12, 12, n), ego[1] + rng.uniform(-12, 12, n)
+        heading, reach = rng.uniform(-math.pi, math.pi, n), rng.uniform(0.0, 14.0, n)
+        margin = rng.uniform(0.2, 1.2, n) if rng.random() < 0.5 else float(rng.uniform(0.2, 1.2))
+        fast = moving_into(*ego, x, y, heading, reach, margin, front_m)
+        np.testing.assert_array_equal(fast, _plain_moving_into(*ego, x, y, heading, reach, margin, front_m))
+        hits += int(fast.sum())
+    assert hits > 100  # the draws come into the ego often enough to tell
+
+
+def test_sweeping_into_answers_as_the_plain_formulation() -> None:
+    rng = np.random.default_rng(20261208)
+    answers = []
+    for _ in range(300):
+        cx, cy = rng.uniform(-15, 15, 2)
+        way = _arc(float(cx), float(cy), float(rng.uniform(6, 25)), float(rng.uniform(0, 360)),
+                   float(rng.uniform(0, 360)) + float(rng.choice([-90.0, 90.0])))
+        near = way[int(rng.integers(len(way)))] + rng.uniform(-4, 4, 2)  # the ego near the way or on it
+        ego = (float(near[0]), float(near[1]), float(rng.uniform(-math.pi, math.pi)), 4.8, 2.0)
+        length, width, reach = float(rng.uniform(3.5, 6)), float(rng.uniform(1.6, 2.2)), float(rng.uniform(0, 20))
+        start = float(rng.uniform(0, arc_lengths(way)[-1]))
+        fast = sweeping_into(*ego, way, length, width, reach, start_m=start)
+        assert fast == _plain_sweeping_into(*ego, way, length, width, reach, start)
+        answers.append(fast)
+    assert 20 < sum(answers) < 280  # both answers drawn
+
+
+@pytest.mark.parametrize("side", [False, True])
+def test_driving_into_answers_as_the_plain_formulation(side: bool) -> None:
+    rng = np.random.default_rng(20261209)
+    hits = 0
+    for _ in range(400):
+        n = int(rng.integers(1, 16))
+        ego = (float(rng.uniform(-50, 50)), float(rng.uniform(-50, 50)), float(rng.uniform(-math.pi, math.pi)), 4.8, 2.0)
+        x, y = ego[0] + rng.uniform(-25, 25, n), ego[1] + rng.uniform(-25, 25, n)
+        heading, speed = rng.uniform(-math.pi, math.pi, n), rng.uniform(0.0, 14.0, n) * (rng.random(n) < 0.7)
+        length, width = rng.uniform(3.5, 12.0, n), rng.uniform(1.6, 2.5, n)
+        test = driving_into_side if side else driving_into
+        fast = test(*ego, x, y, heading, speed, length, width)
+        half = 0.5 * length
+        plain = _plain_moving_into(*ego, x + half * np.cos(heading), y + half * np.sin(heading), heading,
+                                   car_reach(speed), 0.5 * width + CAR_SPARE_M,
+                                   ego[3] / 2.0 - SIDE_FRONT_EXCLUDED_M if side else None)
+        np.testing.assert_array_equal(fast, plain)
+        hits += int(fast.sum())
+    assert hits > 50

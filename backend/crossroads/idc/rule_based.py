@@ -64,6 +64,8 @@ SWEEP_AHEAD_M = (0.5, 1.0, 2.0, 3.0)  # [m] along the arc the ego steers for: wh
 SWEEP_MARGIN_M = 0.1  # [m] kept between the placed body and anyone else's (perceived positions are noisy)
 SWEEP_NEAR_M = 10.0  # [m] no one farther from the ego's centre is looked at
 CLOSING_M = 0.05  # [m] how much nearer than now counts as nearer
+# [m] the ego's body widened by SWEEP_MARGIN_M, as a radius about its centre (and 1 mm for rounding)
+_SWEPT_BODY_RADIUS_M = math.hypot(EGO_LENGTH_M / 2.0 + SWEEP_MARGIN_M, EGO_WIDTH_M / 2.0 + SWEEP_MARGIN_M) + 1e-3
 
 
 @dataclass(frozen=True)
@@ -135,9 +137,15 @@ def body_sweep_conflict(x: float, y: float, heading: float, steer: float, seen: 
     near = seen[np.hypot(seen[:, 0] - x, seen[:, 1] - y) < SWEEP_NEAR_M]
     if len(near) == 0:
         return None
+    cx, cy, h = np.array([(x, y, heading)] + [arc_pose(x, y, heading, steer, a) for a in SWEEP_AHEAD_M]).T
+    # only those whose footprint reaches within the margin of the body at some placement: their
+    # centre within their half-diagonal and the widened body's of that placement's centre
+    reach = (np.hypot(0.5 * near[:, 4], 0.5 * near[:, 5]) + _SWEPT_BODY_RADIUS_M)[:, None]
+    near = near[((near[:, 0, None] - cx[1:]) ** 2 + (near[:, 1, None] - cy[1:]) ** 2 <= reach**2).any(axis=1)]
+    if len(near) == 0:
+        return None
     px, py = footprint_points(near[:, 0], near[:, 1], near[:, 3], near[:, 4], near[:, 5])
     # the body now and at every placement at once: (n, 9 points, 1 + placements)
-    cx, cy, h = np.array([(x, y, heading)] + [arc_pose(x, y, heading, steer, a) for a in SWEEP_AHEAD_M]).T
     gap = outside_box(px[:, :, None], py[:, :, None], cx, cy, h, EGO_LENGTH_M, EGO_WIDTH_M).min(axis=1)
     hit = ((gap[:, 1:] < SWEEP_MARGIN_M) & (gap[:, 1:] < gap[:, :1] - CLOSING_M)).any(axis=0)
     return SWEEP_AHEAD_M[int(hit.argmax())] if hit.any() else None

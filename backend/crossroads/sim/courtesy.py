@@ -74,7 +74,7 @@ import numpy as np
 
 from crossroads.geometry import FloatArray, arc_lengths, footprint_points, placed_along
 from crossroads.sim.gridlock import Removal
-from crossroads.sim.look_ahead import WayAhead, comes_nearer, in_front
+from crossroads.sim.look_ahead import CLOSING_M, WayAhead, comes_nearer, in_front
 from crossroads.sim.sumo import SumoSession
 
 EGO_STANDING_MPS = 0.5  # [m/s] below this the ego counts as standing
@@ -90,7 +90,8 @@ CAR_DECEL_MPS2 = 4.5  # [m/s²] the world's cars brake at this (sim/traffic.py v
 CAR_SPARE_M = 0.2  # [m] kept between a held car's side and the ego, beyond half its width
 SWEEP_NEAR_M = 12.0  # [m] cars inside the junction farther from the ego are not followed along their lanes
 NEAR_CAR_M = 40.0  # [m] no car farther from the ego's centre is checked (14 m/s: 36 m reach)
-_SAMPLES = np.linspace(0.0, 1.0, 8)  # points along the way ahead checked against the footprint
+_SAMPLE_FRACTIONS = tuple(np.linspace(0.0, 1.0, 8).tolist())  # points along the way ahead checked
+_BOUND_SPARE_M = 1e-3  # [m] spare on the bound that skips a mover far from the ego (rounding only)
 NEAR_M = 8.0  # [m] no pedestrian farther from the ego's centre is checked
 CYCLIST_NEAR_M = 15.0  # [m] no cyclist farther from the ego's centre is checked: beyond a cyclist's
 # reach at 6 m/s plus half the car (within 8 m one at 5.4 m/s could no longer stop short of the ego)
@@ -127,22 +128,60 @@ def moving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: floa
     """Which of the movers at ``x``, ``y`` heading ``heading`` would, within ``reach`` [m] (at least
     :data:`LOOKAHEAD_MIN_M`), come into the ego's footprint widened by ``margin_m`` (one for all,
     or one each) deeper than they are now (:func:`~crossroads.sim.look_ahead.comes_nearer`). With ``front_m``, only the part of
-    that footprint at most ``front_m`` ahead of the ego's centre counts (:func:`walking_into_side`)."""
-    reach = np.maximum(np.asarray(reach, dtype=float), LOOKAHEAD_MIN_M)
+    that footprint at most ``front_m`` ahead of the ego's centre counts (:func:`walking_into_side`).
+
+    Checked at :data:`_SAMPLE_FRACTIONS` of each one's way ahead. Worked on Python floats, row by
+    row (a step asks about a handful of movers, where numpy's per-call cost is the whole cost),
+    with the arithmetic of the array formulation in its order, so the answer is the same bit for
+    bit; a mover whose way ahead never comes within reach of the widened footprint's corners is
+    answered without its samples."""
+    xs = np.asarray(x, dtype=float).tolist()
+    margins = np.asarray(margin_m, dtype=float).ravel().tolist()
+    if len(margins) != len(xs):  # one for all
+        margins = margins * len(xs)
+    into = np.zeros(len(xs), dtype=bool)
+    into[_rows_into(ego_x, ego_y, ego_heading, ego_length, ego_width, xs, np.asarray(y, dtype=float).tolist(),
+                    np.asarray(heading, dtype=float).tolist(), np.asarray(reach, dtype=float).tolist(),
+                    margins, front_m)] = True
+    return into
+
+
+def _rows_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
+               xs: list[float], ys: list[float], headings: list[float], reaches: list[float],
+               margins: list[float], front_m: float | None) -> list[int]:
+    """:func:`moving_into` on Python lists: the indices of the rows that come into the ego."""
     cos_e, sin_e = math.cos(ego_heading), math.sin(ego_heading)
-    margin = np.broadcast_to(np.asarray(margin_m, dtype=float), reach.shape)[:, None]
-    half_l, half_w = ego_length / 2.0 + margin, ego_width / 2.0 + margin
-    # points along each one's way ahead, in the ego's frame: (n, samples)
-    px = np.asarray(x)[:, None] + np.cos(heading)[:, None] * reach[:, None] * _SAMPLES
-    py = np.asarray(y)[:, None] + np.sin(heading)[:, None] * reach[:, None] * _SAMPLES
-    dx, dy = px - ego_x, py - ego_y
-    along = dx * cos_e + dy * sin_e
-    across = -dx * sin_e + dy * cos_e
-    ahead = half_l if front_m is None else np.minimum(half_l, front_m)
-    inside = (along >= -half_l) & (along <= ahead) & (np.abs(across) <= half_w)
-    # nearer than now (a driver stood 0.07 m from the ego for a minute and then drove off into its
-    # corner: a_single_lane left, seed 1101115134, base seed 20261206)
-    return comes_nearer(inside, np.maximum(np.abs(along) - half_l, np.abs(across) - half_w))
+    into = []
+    for r in range(len(xs)):
+        reach_r = max(reaches[r], LOOKAHEAD_MIN_M)
+        margin = margins[r]
+        half_l, half_w = ego_length / 2.0 + margin, ego_width / 2.0 + margin
+        radius = half_l + half_w  # at least the widened box's half-diagonal
+        from_x, from_y = xs[r] - ego_x, ys[r] - ego_y
+        if abs(from_x) > reach_r + radius or abs(from_y) > reach_r + radius:
+            continue  # (most: far from the ego for their reach)
+        step_x, step_y = math.cos(headings[r]) * reach_r, math.sin(headings[r]) * reach_r
+        # the point of its way ahead nearest the ego's centre: no nearer than the widened box's
+        # half-diagonal (and a spare for rounding), none of it lies in the box
+        t = min(max(-(from_x * step_x + from_y * step_y) / (reach_r * reach_r), 0.0), 1.0)
+        nearest_x, nearest_y = from_x + t * step_x, from_y + t * step_y
+        if nearest_x * nearest_x + nearest_y * nearest_y > (math.hypot(half_l, half_w) + _BOUND_SPARE_M) ** 2:
+            continue
+        ahead = half_l if front_m is None else min(half_l, front_m)
+        gap_now = 0.0
+        for k, fraction in enumerate(_SAMPLE_FRACTIONS):
+            dx, dy = (xs[r] + step_x * fraction) - ego_x, (ys[r] + step_y * fraction) - ego_y
+            along = dx * cos_e + dy * sin_e
+            across = -dx * sin_e + dy * cos_e
+            gap = max(abs(along) - half_l, abs(across) - half_w)
+            if k == 0:
+                gap_now = gap
+            elif (-half_l <= along <= ahead and abs(across) <= half_w) and gap < gap_now - CLOSING_M:
+                # nearer than now (a driver stood 0.07 m from the ego for a minute and then drove
+                # off into its corner: a_single_lane left, seed 1101115134, base seed 20261206)
+                into.append(r)
+                break
+    return into
 
 
 def walking_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
@@ -187,10 +226,21 @@ def sweeping_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: fl
     car turning through the junction sweeps into a car standing where its straight way ahead passes
     beside it."""
     cum = arc_lengths(way) if cum is None else cum
-    s = start_m + np.linspace(0.0, max(min(max(reach, LOOKAHEAD_MIN_M), float(cum[-1]) - start_m), 0.0), 8)
+    span = max(min(max(reach, LOOKAHEAD_MIN_M), float(cum[-1]) - start_m), 0.0)
+    c, si = math.cos(ego_heading), math.sin(ego_heading)
+    if start_m >= float(cum[0]):
+        # its front stays within ``span`` of where it is now, its body within half a length and
+        # the half-diagonal of that front: a car farther from the ego's widened box cannot come into it
+        dx = float(np.interp(start_m, cum, way[:, 0])) - ego_x
+        dy = float(np.interp(start_m, cum, way[:, 1])) - ego_y
+        off_along = max(abs(dx * c + dy * si) - (0.5 * ego_length + CAR_SPARE_M), 0.0)
+        off_across = max(abs(-dx * si + dy * c) - (0.5 * ego_width + CAR_SPARE_M), 0.0)
+        if math.hypot(off_along, off_across) > (span + 0.5 * length + math.hypot(0.5 * length, 0.5 * width)
+                                                + _BOUND_SPARE_M):
+            return False
+    s = start_m + np.linspace(0.0, span, 8)
     cx, cy, headings = placed_along(way, cum, s, length)
     px, py = footprint_points(cx, cy, headings, np.full(len(s), length), np.full(len(s), width))
-    c, si = math.cos(ego_heading), math.sin(ego_heading)
     dx, dy = px - ego_x, py - ego_y
     along, across = dx * c + dy * si, -dx * si + dy * c
     # per position, its nearest footprint point's distance outside the ego's box widened by the spare
@@ -204,11 +254,24 @@ def driving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: flo
                  length: FloatArray, width: FloatArray) -> np.ndarray:
     """:func:`moving_into` for cars (centres ``x``, ``y``): from the front bumper, :func:`car_reach`
     ahead, the body as half its width plus :data:`CAR_SPARE_M` around its way."""
-    heading = np.asarray(heading, dtype=float)
-    half = 0.5 * np.asarray(length, dtype=float)
-    return moving_into(ego_x, ego_y, ego_heading, ego_length, ego_width,
-                       np.asarray(x) + half * np.cos(heading), np.asarray(y) + half * np.sin(heading),
-                       heading, car_reach(speed), 0.5 * np.asarray(width, dtype=float) + CAR_SPARE_M)
+    return _cars_into(ego_x, ego_y, ego_heading, ego_length, ego_width, x, y, heading, speed, length, width, None)
+
+
+def _cars_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
+               x: FloatArray, y: FloatArray, heading: FloatArray, speed: FloatArray,
+               length: FloatArray, width: FloatArray, front_m: float | None) -> np.ndarray:
+    """:func:`driving_into` (``front_m`` as :func:`moving_into`'s), its fronts, reaches and margins
+    on Python floats, as the array formulation computes them."""
+    headings = np.asarray(heading, dtype=float).tolist()
+    halves = [0.5 * v for v in np.asarray(length, dtype=float).tolist()]
+    fronts_x = [v + half * math.cos(h) for v, half, h in zip(np.asarray(x, dtype=float).tolist(), halves, headings)]
+    fronts_y = [v + half * math.sin(h) for v, half, h in zip(np.asarray(y, dtype=float).tolist(), halves, headings)]
+    reaches = [v * LOOKAHEAD_S + (v * v) / (2.0 * CAR_DECEL_MPS2) for v in np.asarray(speed, dtype=float).tolist()]
+    margins = [0.5 * v + CAR_SPARE_M for v in np.asarray(width, dtype=float).tolist()]
+    into = np.zeros(len(headings), dtype=bool)
+    into[_rows_into(ego_x, ego_y, ego_heading, ego_length, ego_width, fronts_x, fronts_y, headings, reaches,
+                    margins, front_m)] = True
+    return into
 
 
 class Cars(NamedTuple):
@@ -360,12 +423,8 @@ def driving_into_side(ego_x: float, ego_y: float, ego_heading: float, ego_length
                       length: FloatArray, width: FloatArray) -> np.ndarray:
     """:func:`driving_into` a moving ego's sides or rear only, its front
     :data:`SIDE_FRONT_EXCLUDED_M` left out (a car there is in the ego's way, the ego's to stop for)."""
-    heading = np.asarray(heading, dtype=float)
-    half = 0.5 * np.asarray(length, dtype=float)
-    return moving_into(ego_x, ego_y, ego_heading, ego_length, ego_width,
-                       np.asarray(x) + half * np.cos(heading), np.asarray(y) + half * np.sin(heading),
-                       heading, car_reach(speed), 0.5 * np.asarray(width, dtype=float) + CAR_SPARE_M,
-                       front_m=ego_length / 2.0 - SIDE_FRONT_EXCLUDED_M)
+    return _cars_into(ego_x, ego_y, ego_heading, ego_length, ego_width, x, y, heading, speed, length, width,
+                      ego_length / 2.0 - SIDE_FRONT_EXCLUDED_M)
 
 
 def watched_while_moving(cars: Cars, ego: tuple[float, float, float, float, float, float]) -> set[str]:
