@@ -264,7 +264,7 @@ function summaryHtml(b: Json): string {
 export async function showBatch(batchId: number): Promise<void> {
   const [b, episodes] = await Promise.all([api(`/api/batches/${batchId}`), api(`/api/batches/${batchId}/episodes`)]);
   $("#summary").innerHTML = summaryHtml(b);
-  showEpisodes(episodes as Json[]);
+  showEpisodes(episodes as Json[], batchId);
 }
 
 // --- the list and the comparison -----------------------------------------------------------------------

@@ -69,17 +69,37 @@ function redraw(): void {
   }
 }
 
-/** Show ``list`` (a batch's episodes) in #episodes, with the filters and sorting. */
-export function showEpisodes(list: Json[]): void {
+let shownBatch: number | null = null; // whose episodes the table holds now
+let shows = 0; // how many times episodes were shown: #episodes' data-shown, for who waits on a refresh
+
+function outcomeOptions(list: Json[]): string {
+  const outcomes = [...new Set(list.map((e) => e.outcome as string))].sort();
+  return `<option value="">all</option>${outcomes.map((o) => `<option>${esc(o)}</option>`).join("")}`;
+}
+
+/** Show ``list`` (the episodes of batch ``batchId``) in #episodes, with the filters and sorting.
+ *  The same batch shown again (its end, a reload of its results) updates the rows in place: the
+ *  header, a click on it, and the filters typed in are kept, not replaced under the user. */
+export function showEpisodes(list: Json[], batchId: number | null = null): void {
   episodes = list;
+  $("#episodes").dataset.shown = String(++shows);
   if (!list.length) {
     $("#episodes").innerHTML = '<p class="hint">No episodes recorded.</p>';
+    shownBatch = null;
     return;
   }
-  const outcomes = [...new Set(list.map((e) => e.outcome as string))].sort();
+  if (batchId != null && batchId === shownBatch && document.querySelector("#ep-outcome")) {
+    const select = $<HTMLSelectElement>("#ep-outcome");
+    const chosen = select.value;
+    select.innerHTML = outcomeOptions(list);
+    select.value = Array.from(select.options).some((o) => o.value === chosen) ? chosen : "";
+    redraw();
+    return;
+  }
+  shownBatch = batchId;
   $("#episodes").innerHTML = `
     <div class="actions filters">
-      <label>Outcome <select id="ep-outcome"><option value="">all</option>${outcomes.map((o) => `<option>${esc(o)}</option>`).join("")}</select></label>
+      <label>Outcome <select id="ep-outcome">${outcomeOptions(list)}</select></label>
       <label>Seed <input id="ep-seed" inputmode="numeric" placeholder="any" /></label>
       <label>Travel time ≤ [s] <input id="ep-travel-max" type="number" min="0" step="any" placeholder="any" /></label>
       <label>Closest gap ≤ [m] <input id="ep-gap-max" type="number" step="any" placeholder="any" /></label>
