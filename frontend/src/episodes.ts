@@ -88,7 +88,7 @@ export function showEpisodes(list: Json[], batchId: number | null = null): void 
     shownBatch = null;
     return;
   }
-  if (batchId != null && batchId === shownBatch && document.querySelector("#ep-outcome")) {
+  if (batchId != null && batchId === shownBatch) { // only this function writes #episodes
     const select = $<HTMLSelectElement>("#ep-outcome");
     const chosen = select.value;
     select.innerHTML = outcomeOptions(list);

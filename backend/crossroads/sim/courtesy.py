@@ -137,7 +137,7 @@ def moving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: floa
     answered without its samples."""
     xs = np.asarray(x, dtype=float).tolist()
     margins = np.asarray(margin_m, dtype=float).ravel().tolist()
-    if len(margins) != len(xs):  # one for all
+    if len(margins) == 1:  # one for all
         margins = margins * len(xs)
     into = np.zeros(len(xs), dtype=bool)
     into[_rows_into(ego_x, ego_y, ego_heading, ego_length, ego_width, xs, np.asarray(y, dtype=float).tolist(),
@@ -260,17 +260,16 @@ def driving_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: flo
 def _cars_into(ego_x: float, ego_y: float, ego_heading: float, ego_length: float, ego_width: float,
                x: FloatArray, y: FloatArray, heading: FloatArray, speed: FloatArray,
                length: FloatArray, width: FloatArray, front_m: float | None) -> np.ndarray:
-    """:func:`driving_into` (``front_m`` as :func:`moving_into`'s), its fronts, reaches and margins
-    on Python floats, as the array formulation computes them."""
+    """:func:`driving_into` (``front_m`` as :func:`moving_into`'s): the fronts on Python floats, as
+    the array formulation computes them, the reaches :func:`car_reach`'s."""
     headings = np.asarray(heading, dtype=float).tolist()
     halves = [0.5 * v for v in np.asarray(length, dtype=float).tolist()]
     fronts_x = [v + half * math.cos(h) for v, half, h in zip(np.asarray(x, dtype=float).tolist(), halves, headings)]
     fronts_y = [v + half * math.sin(h) for v, half, h in zip(np.asarray(y, dtype=float).tolist(), halves, headings)]
-    reaches = [v * LOOKAHEAD_S + (v * v) / (2.0 * CAR_DECEL_MPS2) for v in np.asarray(speed, dtype=float).tolist()]
-    margins = [0.5 * v + CAR_SPARE_M for v in np.asarray(width, dtype=float).tolist()]
+    margins = (0.5 * np.asarray(width, dtype=float) + CAR_SPARE_M).tolist()
     into = np.zeros(len(headings), dtype=bool)
-    into[_rows_into(ego_x, ego_y, ego_heading, ego_length, ego_width, fronts_x, fronts_y, headings, reaches,
-                    margins, front_m)] = True
+    into[_rows_into(ego_x, ego_y, ego_heading, ego_length, ego_width, fronts_x, fronts_y, headings,
+                    car_reach(speed).tolist(), margins, front_m)] = True
     return into
 
 
