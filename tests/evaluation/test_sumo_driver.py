@@ -2,10 +2,6 @@
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
-from pathlib import Path
 
 import libsumo
 import pytest
@@ -18,7 +14,6 @@ from crossroads.sim.traffic import NO_TRAFFIC, TrafficDemand
 from crossroads.sim.world import EGO_ID, World
 from support import patched_episode
 
-REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -69,22 +64,6 @@ def test_step_refuses_a_mix_of_drivers(net) -> None:
             world.step(None)
 
 
-_ONE_EPISODE = """
-import dataclasses, json, sys
-from pathlib import Path
-from crossroads.evaluation.episode import run_episode
-from crossroads.evaluation.sumo_driver import SumoDriverPolicy
-from crossroads.scenario.spec import load_scenario, to_world_config
-from crossroads.sim.world import World
-path, seed, rule, mode = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3], sys.argv[4] == "on"
-world_changes = json.loads(sys.argv[5]) if len(sys.argv) > 5 else {}  # WorldConfig fields
-driver = dataclasses.replace(SumoDriverPolicy().driver, **{rule: mode})
-with World(dataclasses.replace(to_world_config(load_scenario(path), path.parent), **world_changes)) as world:
-    result = run_episode(world, SumoDriverPolicy(driver=driver), seed=seed)
-print(json.dumps([result.outcome, result.detail]))
-"""
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize(("scenario", "seed", "hit"), [
     ("e_irregular_oblique-left", "808738376", "hit pedestrian"),
@@ -103,12 +82,8 @@ def test_sumo_driver_brakes_for_whoever_is_in_its_way_ahead(scenario: str, seed:
     process, as ``crossroads run`` does: SUMO's result can depend on what the process ran before (a
     batch forks each episode for that reason). (A change of the world's traffic may move the
     others: then find another such run with the benchmark, ``--policy sumo --scenario ...``.)"""
-    path = REPO / f"scenarios/nominal/{scenario}.yaml"
-    outcomes = {}
-    for mode in ("off", "on"):
-        done = subprocess.run([sys.executable, "-c", _ONE_EPISODE, str(path), seed, "look_ahead", mode],
-                              capture_output=True, text=True, timeout=300, check=True)
-        outcomes[mode] = json.loads(done.stdout.strip().splitlines()[-1])
+    outcomes = {mode: patched_episode(scenario, "sumo", int(seed), driver={"look_ahead": mode == "on"})
+                for mode in ("off", "on")}
     assert outcomes["off"][0] == "collision" and outcomes["off"][1].startswith(hit), outcomes
     assert outcomes["on"][0] == "passed", outcomes
 
@@ -152,13 +127,9 @@ def test_sumo_driver_clears_the_junction_once_its_light_is_no_longer_green() -> 
     seed: without clearing, SUMO's driver times out (still driving after 206 s); with it, it
     passes. In the world before drivers let those caught inside the junction out (``let_out``),
     which lets this run out either way. Fresh processes, as above."""
-    path = REPO / "scenarios/nominal/c_three_lane-left.yaml"
-    outcomes = {}
-    for mode in ("off", "on"):
-        done = subprocess.run([sys.executable, "-c", _ONE_EPISODE, str(path), "2016976523", "clear_junction", mode,
-                               json.dumps({"let_out": False})], capture_output=True, text=True, timeout=300,
-                              check=True)
-        outcomes[mode] = json.loads(done.stdout.strip().splitlines()[-1])
+    outcomes = {mode: patched_episode("c_three_lane-left", "sumo", 2016976523, world={"let_out": False},
+                                      driver={"clear_junction": mode == "on"})
+                for mode in ("off", "on")}
     assert outcomes["off"][0] == "timeout", outcomes
     assert outcomes["on"][0] == "passed", outcomes
 

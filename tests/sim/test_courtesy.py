@@ -3,10 +3,7 @@ standoff, and the rule in SUMO."""
 
 from __future__ import annotations
 
-import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -348,27 +345,6 @@ def test_after_a_cyclist_goes_round_the_car_the_observation_reads_no_one_gone() 
     assert removed and outcome.kind == "passed"
 
 
-_ONE_EPISODE = """
-import json, sys
-from pathlib import Path
-import crossroads.sim.courtesy as courtesy
-from crossroads.evaluation.episode import run_episode
-from crossroads.evaluation.sumo_driver import SumoDriverPolicy
-from crossroads.scenario.spec import load_scenario, to_world_config
-from crossroads.sim.world import World
-path, seed, keep = Path(sys.argv[1]), int(sys.argv[2]), sys.argv[3] == "on"
-if not keep:  # the rule before: those held go the moment the ego moves, and it holds no one new
-    courtesy._only = lambda movers, ids: type(movers)(*(c[:0] for c in movers))
-    courtesy.walking_into_side = lambda *args: courtesy.walking_into(*args) & False
-from dataclasses import replace
-# the scene as it was found: before drivers let those caught inside out, and changed lanes inside
-cfg = replace(to_world_config(load_scenario(path), path.parent), let_out=False, junction_lane_changes=True)
-with World(cfg) as world:
-    result = run_episode(world, SumoDriverPolicy(), seed=seed)
-print(json.dumps([result.outcome, result.detail]))
-"""
-
-
 @pytest.mark.slow
 def test_a_pedestrian_held_beside_the_ego_does_not_walk_into_it_as_it_pulls_away() -> None:
     """The nominal left turn of e_irregular_oblique, run 1311414304 of benchmarks/world_flow.py's
@@ -378,13 +354,15 @@ def test_a_pedestrian_held_beside_the_ego_does_not_walk_into_it_as_it_pulls_away
     which held no one for a moving ego.) The world without the rules that came after and change
     this run's traffic (``let_out``, ``junction_lane_changes``). Fresh processes, as ``crossroads
     run`` (SUMO's result can depend on what the process ran before)."""
-    path = Path(__file__).resolve().parents[2] / "scenarios/nominal/e_irregular_oblique-left.yaml"
-    outcomes = {}
-    for mode in ("off", "on"):
-        done = subprocess.run([sys.executable, "-c", _ONE_EPISODE, str(path), "1311414304", mode],
-                              capture_output=True, text=True, timeout=300, check=True)
-        outcomes[mode] = json.loads(done.stdout.strip().splitlines()[-1])
-    assert outcomes["off"] == ["collision", "hit pedestrian ped4"], outcomes
+    # the scene as it was found: before drivers let those caught inside out, and changed lanes inside
+    scene = {"let_out": False, "junction_lane_changes": True}
+    # the rule before: those held go the moment the ego moves, and it holds no one new
+    before = ("crossroads.sim.courtesy:_only=lambda movers, ids: type(movers)(*(c[:0] for c in movers))",
+              "crossroads.sim.courtesy:walking_into_side=lambda *args: walking_into(*args) & False")
+    outcomes = {mode: patched_episode("e_irregular_oblique-left", "sumo", 1311414304,
+                                      *(before if mode == "off" else ()), world=scene)
+                for mode in ("off", "on")}
+    assert outcomes["off"][:2] == ["collision", "hit pedestrian ped4"], outcomes
     assert outcomes["on"][0] != "collision", outcomes
 
 
