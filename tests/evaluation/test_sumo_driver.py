@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-
 import libsumo
 import pytest
 
@@ -13,7 +12,6 @@ from crossroads.sim.config import WorldConfig
 from crossroads.sim.traffic import NO_TRAFFIC, TrafficDemand
 from crossroads.sim.world import EGO_ID, World
 from support import patched_episode
-
 
 
 @pytest.fixture(scope="module")
