@@ -260,7 +260,8 @@ def _candidates_states(candidates, seed: int, n: int, preview: bool) -> list[np.
 def test_candidates_input_is_network_input_bit_for_bit(candidates, xp, dtype) -> None:
     """The online decision normalises the rows' shared x_ego and x_other once (candidates_input):
     the same numbers as network_input of every row, bit for bit, with and without the preview and
-    the lead summary, on the states build_states makes."""
+    the lead summary, on the states build_states makes (some with someone in the corridor ahead)."""
+    leads = 0
     for preview in (False, True):
         for states in _candidates_states(candidates, seed=11, n=60, preview=preview):
             data = states.astype(dtype)
@@ -271,6 +272,8 @@ def test_candidates_input_is_network_input_bit_for_bit(candidates, xp, dtype) ->
                 assert got.dtype == expected.dtype and got.shape == expected.shape
                 assert got.tobytes() == expected.tobytes()
                 assert got.flags.c_contiguous
+                leads += lead and bool(got[0, -1] == 1.0)
+    assert leads > 0
 
 
 def test_candidates_input_on_random_shared_rows() -> None:

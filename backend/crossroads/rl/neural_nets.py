@@ -150,12 +150,28 @@ class ParticipantPooling(nn.Module):
         self.register_buffer("kinds", kinds)
 
     def forward(self, x: Tensor) -> Tensor:
-        lead = x.shape[:-1]
-        others = x[..., HEAD_DIM:HEAD_DIM + OTHERS_DIM].reshape(lead + (N_OTHERS, OTHER_STATE_DIM))
-        speed = x[..., EGO_SPEED_INPUT, None, None].expand(lead + (N_OTHERS, 1))
-        features = torch.cat([others, self.kinds.to(x.dtype).expand(lead + self.kinds.shape), speed], dim=-1)
-        pooled = self.encode(features).amax(dim=-2)
-        return torch.cat([x[..., :HEAD_DIM], x[..., HEAD_DIM + OTHERS_DIM:], pooled], dim=-1)
+        return _pool(x, self.encode.steps(), self.kinds)
+
+    def function(self) -> Callable[[Tensor], Tensor]:
+        """:meth:`forward` as a function of the parameters and slot kinds fetched now (as
+        :meth:`MLP.steps`): the same operations, so the same numbers bit for bit, without the
+        module calls; for the online decision's fast path."""
+        steps, kinds = self.encode.steps(), self.kinds
+
+        def pool(x: Tensor) -> Tensor:
+            return _pool(x, steps, kinds)
+
+        return pool
+
+
+def _pool(x: Tensor, steps: tuple[Step, ...], kinds: Tensor) -> Tensor:
+    """:meth:`ParticipantPooling.forward` on the encoder's :meth:`MLP.steps` and its slot kinds."""
+    lead = x.shape[:-1]
+    others = x[..., HEAD_DIM:HEAD_DIM + OTHERS_DIM].reshape(lead + (N_OTHERS, OTHER_STATE_DIM))
+    speed = x[..., EGO_SPEED_INPUT, None, None].expand(lead + (N_OTHERS, 1))
+    features = torch.cat([others, kinds.to(x.dtype).expand(lead + kinds.shape), speed], dim=-1)
+    pooled = run_steps(features, steps).amax(dim=-2)
+    return torch.cat([x[..., :HEAD_DIM], x[..., HEAD_DIM + OTHERS_DIM:], pooled], dim=-1)
 
 
 def trunk_width(preview: bool, lead: bool, encoder: int) -> int:
@@ -221,11 +237,12 @@ class SquashedGaussianPolicy(nn.Module):
         module call or attribute look-up per layer, nor the log-std a mean action does not need.
         For the online decision (one row a step, under ``torch.inference_mode``); fetch it again
         after replacing the parameters or buffers (``.to`` another dtype or device)."""
-        steps, encoder, dim, low = self.net.steps(), self.encoder, self.dim, self.low
+        steps, dim, low = self.net.steps(), self.dim, self.low
+        encode = None if self.encoder is None else self.encoder.function()
         half_range = 0.5 * (self.high - self.low)  # squash's factor, the same float32 each call
 
         def mean_action(x: Tensor) -> Tensor:
-            out = run_steps(x if encoder is None else encoder(x), steps)
+            out = run_steps(x if encode is None else encode(x), steps)
             return low + (torch.tanh(out[..., :dim]) + 1.0) * half_range
 
         return mean_action
@@ -289,10 +306,11 @@ class ValueNet(nn.Module):
     def value_function(self) -> Callable[[Tensor], Tensor]:
         """:meth:`value_of_input` as a function of this network's parameters fetched now: the same
         numbers bit for bit, for the online decision (as :meth:`SquashedGaussianPolicy.mean_action_function`)."""
-        steps, encoder = self.net.steps(), self.encoder
+        steps = self.net.steps()
+        encode = None if self.encoder is None else self.encoder.function()
 
         def value(x: Tensor) -> Tensor:
-            return torch.relu(run_steps(x if encoder is None else encoder(x), steps)).squeeze(-1)
+            return torch.relu(run_steps(x if encode is None else encode(x), steps)).squeeze(-1)
 
         return value
 
