@@ -31,9 +31,10 @@
 # has since changed), here with an adversary ten times slower than the policy:
 #   WARM=1 APG_FROM=dpg LR=3e-4,1e-5 ADV_LR=3e-5,1e-6 RULE_SHARE=0.25 make models ITERATIONS=3200
 # ALGOS picks the runs (default "apg dpg"); ALGOS=apg trains and exports APG alone. EXTRA sets any
-# further config fields ("name=value ...", last). The recipe of the shipped APG, from the model
-# before it (the experiment shipped-apg):
-#   WARM=1 ALGOS=apg EXPERIMENTS=shipped-apg THREADS=1 make models ITERATIONS=6000
+# further config fields ("name=value ...", last). The last run of the shipped APG, from the model
+# before it (the experiment shipped-apg; the shipped weights are its checkpoint at 500 iterations,
+# exported with `crossroads train export OUT/apg-seed0/checkpoints/ckpt_00000500.pt -o models/apg.pt`):
+#   WARM=1 ALGOS=apg INIT_DIR=models/pooled EXPERIMENTS=shipped-apg THREADS=1 make models ITERATIONS=3000
 # Going on from an experimental model kept in models/ (models/README.md):
 #   WARM=1 ALGOS=apg INIT_DIR=models/standing-car LR=1e-4,1e-5 ADV_LR=3e-5,1e-6 RULE_SHARE=0.25 \
 #     EXTRA="standing_car_share=0.4 empty_share=0.2" make models ITERATIONS=4000

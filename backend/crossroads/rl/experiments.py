@@ -50,7 +50,7 @@ _FINE_TUNE: dict[str, Any] = {
     "policy_lr": FINE_TUNE_LR, "value_lr": FINE_TUNE_LR, "adversary_lr": SLOW_ADVERSARY_LR,
     "max_grad_norm": 10.0, "rule_share": 0.25, "samples_per_iteration": 64.0,
     "braking_floor": True, "empty_share": 0.2, "path_preview": True,
-}  # what the runs behind models/apg.pt and models/pooled/apg.pt share (their cards' configs)
+}  # what the last runs behind models/apg.pt and models/pooled/apg.pt share (their cards' configs)
 
 _ALL = (
     Experiment(
@@ -63,11 +63,13 @@ _ALL = (
     ),
     Experiment(
         "shipped-apg",
-        "the last run of the shipped APG (models/apg.pt): the braking floor, the log loss, the path "
-        "preview, 20 % empty scenes, lr 1e-4 → 1e-5 with an adversary ten times slower; it ran 4 000 "
-        "iterations of a 6 000-iteration schedule, warm-started (--set init_from=...)",
-        {**_FINE_TUNE, "policy_loss": "log"},
-        f"{TRIED_PAGE}#seeing-the-path-ahead-2026-12-03",
+        "the last run of the shipped APG (models/apg.pt): the pooled model's recipe (participants "
+        "through one pooled encoder of 64 units, the stopping tail, the lead summary, the braking floor, "
+        "the path preview, lr 1e-4 → 1e-5 with an adversary ten times slower) with the log loss; it ran "
+        "500 iterations of a 3 000-iteration schedule, warm-started from models/pooled/apg.pt "
+        "(--set init_from=...)",
+        {**_FINE_TUNE, "policy_loss": "log", "participant_encoder": 64, "stopping_tail": 40, "lead_input": True},
+        f"{TRIED_PAGE}#pooled-participants-with-the-log-loss-2026-12-08",
     ),
     Experiment(
         "pooled",
